@@ -7,7 +7,7 @@ the column sends over time, frame 0 first.  For binary codes the symbols are bit
 Linear codes also carry their generator matrix and the message of every column, so that fast
 decoders can work in the message space::
 
-    codebook[j] == (bits(messages[j]) @ generator) % q
+    codebook[j] == (bits(messages[j]) @ generator) % q      (q prime; GF(2**m) see `Code.encode`)
 
 where ``bits(m)`` is the k-digit base-q expansion of ``m``, most significant digit first.
 """
@@ -56,6 +56,21 @@ def inverse_gray(g: np.ndarray | int) -> np.ndarray:
         g ^= g >> shift
         shift <<= 1
     return g
+
+
+def encode_messages(messages: np.ndarray, generator: np.ndarray, q: int = 2) -> np.ndarray:
+    """Codewords of message integers: (M,) int, (k, n) generator over GF(q) -> (M, n) uint8.
+
+    Prime q: ``digits(m) @ generator % q``.  q = 2**m > 2: product in GF(q) with the
+    polynomial-basis integers of `edge.codes.gfq` (``% q`` would be wrong there).
+    """
+    g = np.asarray(generator, dtype=np.int64)
+    digits = int_to_digits(np.asarray(messages), g.shape[0], q).astype(np.int64)
+    from .gfq import field_kind, gf_matmul
+
+    if field_kind(q) == "prime":
+        return ((digits @ g) % q).astype(np.uint8)
+    return gf_matmul(digits, g, q).astype(np.uint8)
 
 
 def pack_rows(codebook: np.ndarray) -> np.ndarray:
@@ -128,7 +143,10 @@ class Code:
         systematic: the first k symbols of every codeword are its message (``messages[j]``).
         generator: (k, n) uint8 generator over GF(q) for linear codes, else None.
         messages: (q**k,) int64 message of every column, for linear codes; ``codebook[j] ==
-            bits(messages[j]) @ generator % q``.  None for non-linear codes.
+            encode(messages[j])``, which is ``bits(messages[j]) @ generator % q`` for prime q
+            (2, 3, ...).  For q = 2**m > 2 (GF(8), GF(16)) the symbols are polynomial-basis
+            integers and the product is taken in GF(q) (`Code.encode`, `edge.codes.gfq`); plain
+            ``% q`` arithmetic is wrong there.  None for non-linear codes.
         construction: a human-readable line saying how the code was built.
         order: how columns map to messages: ``"gray"`` (default), ``"binary"`` or ``"custom"``.
         d_min: minimum Hamming distance, computed exhaustively at construction.
@@ -172,8 +190,7 @@ class Code:
             msg.setflags(write=False)
             object.__setattr__(self, "messages", msg)
         if self.generator is not None and self.messages is not None:
-            check = (int_to_digits(self.messages, self.k, self.q).astype(np.int64) @ self.generator) % self.q
-            if not np.array_equal(check, cb):
+            if not np.array_equal(self.encode(self.messages), cb):
                 raise ValueError(f"code {self.name!r}: codebook does not equal messages @ generator")
         if self.systematic:
             if self.messages is None:
@@ -210,6 +227,24 @@ class Code:
         return int(self.codebook.shape[0])
 
     @property
+    def prime_field(self) -> bool:
+        """True when symbol arithmetic is integers mod q (q prime); False for GF(2**m), q = 8, 16..."""
+        from .gfq import field_kind
+
+        return field_kind(self.q) == "prime"
+
+    def encode(self, messages: np.ndarray) -> np.ndarray:
+        """Codewords of message integers with the generator, in the arithmetic of GF(q).
+
+        messages: (M,) int -> (M, n) uint8.  For prime q this is ``digits(m) @ generator % q``;
+        for q = 2**m (GF(8), GF(16)) symbols are polynomial-basis integers of `edge.codes.gfq`
+        and the product is taken in GF(q) (``% q`` would be wrong there).
+        """
+        if self.generator is None:
+            raise ValueError(f"code {self.name!r} has no generator matrix")
+        return encode_messages(messages, self.generator, self.q)
+
+    @property
     def is_linear(self) -> bool:
         return self.generator is not None and self.messages is not None
 
@@ -240,7 +275,7 @@ class Code:
         return Code(
             name=name, family=self.family, codebook=self.codebook, k=self.k, q=self.q,
             systematic=self.systematic, generator=self.generator, messages=self.messages,
-            construction=self.construction, order=self.order,
+            construction=self.construction, order=self.order, promised_d_min=self.promised_d_min,
         )
 
     def __repr__(self) -> str:

@@ -65,6 +65,26 @@ def column_messages(generator: np.ndarray, order: str = "gray") -> np.ndarray:
     raise ValueError(f"column order must be 'gray', 'gray-plain' or 'binary', got {order!r}")
 
 
+def information_set_first(generator: np.ndarray) -> np.ndarray:
+    """Permute the columns of a full-rank (k, n) generator so that its first k columns are
+    linearly independent (an information set); the other columns keep their relative order.
+
+    The result generates an equivalent code (same weights, same d_min), with frames reordered.
+    """
+    g = np.asarray(generator, dtype=np.uint8) & 1
+    k, n = g.shape
+    chosen: list[int] = []
+    for c in range(n):
+        if rank(g[:, chosen + [c]]) == len(chosen) + 1:
+            chosen.append(c)
+            if len(chosen) == k:
+                break
+    if len(chosen) < k:
+        raise ValueError(f"generator of shape {g.shape} is not full rank")
+    rest = [c for c in range(n) if c not in set(chosen)]
+    return g[:, chosen + rest]
+
+
 def from_generator(
     generator: np.ndarray,
     *,
@@ -74,11 +94,17 @@ def from_generator(
     order: str = "gray",
     promised_d_min: int | None = None,
 ) -> Code:
-    """A systematic binary linear code from any full-rank (k, n) generator."""
+    """A systematic binary linear code from any full-rank (k, n) generator.
+
+    If the first k columns are not an information set, the columns are permuted first
+    (`information_set_first`), so the frames of the code may come in another order.
+    """
     g = np.asarray(generator, dtype=np.uint8) & 1
     k, n = g.shape
     if rank(g) != k:
         raise ValueError(f"{name}: generator of shape {g.shape} is not full rank")
+    if rank(g[:, :k]) != k:
+        g = information_set_first(g)
     g = systematic_form(g)
     messages = column_messages(g, order)
     return Code(

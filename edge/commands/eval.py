@@ -1,0 +1,48 @@
+"""``edge eval``: simulator evaluation.
+
+    edge eval sweep [--quick] [--out docs/results/eval] [--experiments a,b]
+
+runs the paper's comparisons (see `edge.sim.sweep`) with `edge.decode.decode`, with a progress
+bar, and writes PNG plots, results.json and README.md (tables + claims) into ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("eval", help="evaluate decoders on simulated scenes")
+    sub = parser.add_subparsers(dest="eval_command", metavar="EVAL_COMMAND")
+    sweep = sub.add_parser("sweep", help="reproduce the paper's error-rate curves (plots + markdown)")
+    sweep.add_argument("--quick", action="store_true", help="small images, one seed, 5 ratios (about a minute)")
+    sweep.add_argument("--out", type=Path, default=Path("docs/results/eval"), help="output folder")
+    sweep.add_argument("--experiments", default=None,
+                       help="comma-separated subset of soft_quant,decode_quant,read_noise,arrangement,nary")
+    sweep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    sweep.set_defaults(func=run_sweep_command)
+    parser.set_defaults(func=lambda args: (parser.print_help(), 2)[1])
+
+
+def run_sweep_command(args: argparse.Namespace) -> int:
+    from ..sim.sweep import SweepConfig, edge_decoder, run_sweep, write_report
+
+    cfg = SweepConfig.quick() if args.quick else SweepConfig()
+    if args.experiments:
+        cfg = replace(cfg, experiments=tuple(e.strip() for e in args.experiments.split(",") if e.strip()))
+    try:
+        decoder = edge_decoder()
+    except ImportError as exc:
+        raise ValueError(f"edge.decode.decode is not available ({exc}); use tools/eval_sweep.py --decoder reference")
+    t0 = time.perf_counter()
+    rows = run_sweep(cfg, decoder, progress=not args.no_progress)
+    command = "edge eval sweep" + (" --quick" if args.quick else "") + (
+        f" --experiments {args.experiments}" if args.experiments else "") + f" --out {args.out}"
+    path = write_report(rows, args.out, cfg, command=command, decoder_name="edge.decode.decode",
+                        seconds=time.perf_counter() - t0)
+    print(f"wrote {path}", file=sys.stderr)
+    return 0

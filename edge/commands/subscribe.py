@@ -1,0 +1,97 @@
+"""``edge subscribe``: receive depth from a running service, print rates and latency, save a PNG.
+
+    edge subscribe [--device sim-dlp] [--connect tcp/127.0.0.1:7447] [--png depth.png]
+                   [--count N] [--seconds S]
+
+Prints one line per second (depth maps/s, median and max latency in ms, dropped, last status
+fps) and a summary; ``--png`` writes the last depth map colour-mapped (cv2.COLORMAP_TURBO, invalid
+pixels black). Exit 1 if no depth map arrived.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+
+from edge.profiles import DEFAULT_PROFILE
+
+
+def colorize_depth(depth_mm: np.ndarray) -> np.ndarray:
+    """(H, W, 3) uint8 BGR image of a uint16 depth map: TURBO over the valid range, 0 -> black."""
+    import cv2
+
+    valid = depth_mm > 0
+    out = np.zeros(depth_mm.shape + (3,), np.uint8)
+    if valid.any():
+        lo, hi = np.percentile(depth_mm[valid], [1, 99])
+        scaled = np.clip((depth_mm.astype(np.float32) - lo) / max(hi - lo, 1.0), 0, 1)
+        out = cv2.applyColorMap((scaled * 255).astype(np.uint8), cv2.COLORMAP_TURBO)
+        out[~valid] = 0
+    return out
+
+
+def _run(args: argparse.Namespace) -> int:
+    from edge.io.zenoh import DepthSubscriber
+
+    if args.count is not None and args.count < 1:
+        raise ValueError(f"expected --count >= 1, got {args.count}")
+    if args.seconds <= 0:
+        raise ValueError(f"expected --seconds > 0, got {args.seconds}")
+    total, latencies, last = 0, [], None
+    with DepthSubscriber(args.device, connect=args.connect, prefix=args.prefix) as sub:
+        start = time.monotonic()
+        tick, window = start, []
+        while time.monotonic() - start < args.seconds and (args.count is None or total < args.count):
+            sample = sub.receive(timeout=0.2)
+            if sample is not None:
+                total += 1
+                last = sample
+                latencies.append(sample.latency_ms)
+                window.append(sample.latency_ms)
+            now = time.monotonic()
+            if now - tick >= 1.0:
+                fps = (sub.status or {}).get("fps", "-")
+                lat = f"{statistics.median(window):.1f}/{max(window):.1f}" if window else "-/-"
+                print(f"{len(window) / (now - tick):6.1f} depth/s  latency p50/max {lat} ms  "
+                      f"dropped {sub.dropped}  service fps {fps}", flush=True)
+                tick, window = now, []
+        elapsed = time.monotonic() - start
+        errors = list(sub.errors)
+    if last is None:
+        print(f"no depth from {args.prefix}/{args.device} in {elapsed:.1f} s (connect {', '.join(args.connect)})")
+        return 1
+    lat = sorted(latencies)
+    p99 = lat[min(len(lat) - 1, int(round(0.99 * (len(lat) - 1))))]
+    print(f"received {total} depth maps in {elapsed:.1f} s ({total / elapsed:.1f}/s); latency ms p50 "
+          f"{statistics.median(lat):.1f} p99 {p99:.1f}; last {last.header['width']}x{last.header['height']} "
+          f"seq {last.header['sequence']}, valid {(last.depth_mm > 0).mean():.1%}")
+    for e in errors[:3]:
+        print(f"bad sample: {e}")
+    if args.png:
+        import cv2
+
+        if not cv2.imwrite(args.png, colorize_depth(last.depth_mm)):
+            raise ValueError(f"could not write PNG to {args.png!r}")
+        print(f"wrote {args.png}")
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("subscribe", help="receive depth over zenoh; print rates, latency; save a PNG")
+    parser.add_argument("--device", default=DEFAULT_PROFILE, help="device name in the key space (default %(default)s)")
+    parser.add_argument("--prefix", default="sl", help="key prefix (default %(default)s)")
+    parser.add_argument("--connect", action="append", default=None, metavar="ENDPOINT",
+                        help="zenoh endpoint to connect to (repeatable; default tcp/127.0.0.1:7447)")
+    parser.add_argument("--png", default=None, help="write the last depth map colour-mapped to this PNG")
+    parser.add_argument("--count", type=int, default=None, help="stop after N depth maps")
+    parser.add_argument("--seconds", type=float, default=10.0, help="stop after S seconds (default %(default)s)")
+    parser.set_defaults(func=lambda a: _run(_defaults(a)))
+
+
+def _defaults(args: argparse.Namespace) -> argparse.Namespace:
+    if not args.connect:
+        args.connect = ["tcp/127.0.0.1:7447"]
+    return args

@@ -1,0 +1,220 @@
+"""`decode`: frames of a coded capture -> projector column, confidence and top-3 candidates.
+
+Methods (``method=``):
+
+* ``"hard"``: binarise each sample against (white + black)/2 (or pattern vs inverse), decode to
+  the nearest codeword in Hamming distance (coset-leader table for binary linear codes, exact
+  top-3 Hamming search otherwise).  Confidence (syndrome path): ``max(0, d_min - 2 d1) /
+  (d_min - d1)``, the paper's ratio with the guaranteed lower bound ``d2 >= d_min - d1``.
+* ``"soft"``: exact maximum-likelihood top-3 under the heteroscedastic Gaussian model (see
+  `edge.decode.kernels`); confidence ``(d2 - d1) / d2``.
+* ``"list"``: soft + order prior along image rows (`edge.decode.spatial.order_prior`).
+* ``"median"``: soft + confidence median filter (`edge.decode.spatial.confidence_median`).
+* ``"list+median"``: order prior, then the median filter.
+
+``metric="ml"`` (default) or ``"normalized"`` (the paper's plain normalised distance) selects the
+per-sample costs for the soft methods.  The valid mask is
+``contrast >= min_contrast & confidence >= min_confidence & column >= 0`` (plus what the
+spatial methods reject); see `DEFAULTS`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..codes import Code
+from . import kernels
+from .inputs import Stack, validate
+from .spatial import confidence_median, order_prior
+from .tables import code_tables
+
+METHODS = ("hard", "soft", "list", "median", "list+median")
+METRICS = {"ml": kernels.METRIC_ML, "normalized": kernels.METRIC_NORMALIZED}
+
+#: Documented defaults of `decode`.
+DEFAULTS = {
+    # Noise model, in normalised intensity units (1 = full scale of the frame dtype):
+    # readout + quantisation sigma and shot-noise coefficient (variance = sr^2 + ss^2 * I).
+    "sigma_r": 0.01,
+    "sigma_s": 0.03,
+    # Valid mask: white - black (normalised) and (d2 - d1)/d2 thresholds.
+    "min_contrast": 0.04,
+    "min_confidence": 0.3,
+    # Spatial methods: confidence >= t_high votes / anchors; < t_low is replaced.
+    "t_low": 0.3,
+    "t_high": 0.6,
+}
+
+#: Quantisation steps per unit of per-sample cost (ML: chi-square units; normalised: x**2 units).
+Q_SCALE = {kernels.METRIC_ML: 256.0, kernels.METRIC_NORMALIZED: 16384.0, kernels.METRIC_HARD: 1.0}
+#: With a disparity band of at most this many columns the soft kernel scans the band directly.
+BAND_BRUTE_MAX = 256
+
+
+@dataclass(frozen=True)
+class Decoded:
+    """Decoder output for an (H, W) camera image.
+
+    column: (H, W) int32 codebook row (projector column // stripe), -1 where invalid.
+    confidence: (H, W) float32 in [0, 1], higher = more confident.
+    valid: (H, W) bool (column >= 0 exactly where valid).
+    candidates: (H, W, 3) int32 best three codebook rows by distance (-1 where fewer exist).
+    distances: (H, W, 3) float32 their distances (inf where absent).
+    stats: counters of the search (``brute_pixels``, ``evaluated``, ``seconds``).
+    """
+
+    column: np.ndarray
+    confidence: np.ndarray
+    valid: np.ndarray
+    candidates: np.ndarray
+    distances: np.ndarray
+    stats: dict = field(default_factory=dict)
+
+
+def _band_args(width: int, min_disparity: float | None, max_disparity: float | None) -> tuple[bool, int, int]:
+    if min_disparity is None and max_disparity is None:
+        return False, 0, 0
+    lo = -(10**9) if min_disparity is None else int(np.floor(min_disparity))
+    hi = 10**9 if max_disparity is None else int(np.ceil(max_disparity))
+    if lo > hi:
+        raise ValueError(f"disparity band: expected min_disparity <= max_disparity, got {min_disparity} > {max_disparity}")
+    return True, lo, hi
+
+
+def search(
+    stack: Stack,
+    code: Code,
+    *,
+    metric: int,
+    sigma_r: float,
+    sigma_s: float,
+    columns: int,
+    band: tuple[bool, int, int],
+    stripe: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
+    """Exact top-3 search: (candidates (H,W,3) i32, distances (H,W,3) f32, confidence (H,W) f32, stats)."""
+    tb = code_tables(code)
+    h, w = stack.shape
+    cand = np.empty((h, w, 3), np.int32)
+    dist = np.empty((h, w, 3), np.float32)
+    conf = np.empty((h, w), np.float32)
+    inv = stack.inverse if stack.inverse is not None else stack.frames[:1, :1, :1]
+    use_band, min_d, max_d = band
+    q_scale = Q_SCALE[metric]
+    sr2, ss2 = float(sigma_r) ** 2, float(sigma_s) ** 2
+    t0 = time.perf_counter()
+    if code.q == 2:
+        stats = np.zeros((h, 2), np.int64)
+        kernels.soft_binary(
+            stack.frames, inv, stack.inverse is not None, stack.white, stack.black, stack.scale,
+            metric, sr2, ss2, q_scale, tb.masks, tb.comp_info, tb.col_of_info, tb.comp_syn,
+            tb.leader, tb.has_leader, tb.linear, tb.diff_masks, tb.diff_info, tb.class_start,
+            tb.sub_start, tb.sub_p0, tb.class_sub, columns, use_band, min_d, max_d, stripe,
+            BAND_BRUTE_MAX, cand, dist, conf, stats,
+        )
+        st = {"brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
+    else:
+        kernels.soft_nary(
+            stack.frames, inv, stack.inverse is not None, stack.white, stack.black, stack.scale,
+            metric, sr2, ss2, q_scale, code.q, tb.codebook, columns, use_band, min_d, max_d,
+            stripe, cand, dist, conf,
+        )
+        st = {"brute_pixels": h * w, "evaluated": -1}
+    st["seconds"] = time.perf_counter() - t0
+    return cand, dist, conf, st
+
+
+def _hard(stack: Stack, code: Code, columns: int, band: tuple[bool, int, int], stripe: int):
+    tb = code_tables(code)
+    h, w = stack.shape
+    if code.q == 2 and tb.linear and tb.has_leader:
+        col = np.empty((h, w), np.int32)
+        d1 = np.empty((h, w), np.int32)
+        inv = stack.inverse if stack.inverse is not None else stack.frames[:1, :1, :1]
+        use_band, min_d, max_d = band
+        kernels.hard_syndrome(
+            stack.frames, inv, stack.inverse is not None, stack.white, stack.black, stack.scale,
+            tb.masks, tb.comp_info, tb.col_of_info, tb.comp_syn, tb.leader, code.d_min, columns,
+            use_band, min_d, max_d, stripe, col, d1,
+        )
+        dmin = code.d_min
+        conf = (np.maximum(dmin - 2 * d1, 0) / np.maximum(dmin - d1, 1)).astype(np.float32)
+        conf[col < 0] = 0
+        cand = np.full((h, w, 3), -1, np.int32)
+        cand[..., 0] = col
+        dist = np.full((h, w, 3), np.inf, np.float32)
+        dist[..., 0] = np.where(col >= 0, d1, np.inf)
+        return cand, dist, conf, {"path": "syndrome"}
+    cand, dist, conf, st = search(stack, code, metric=kernels.METRIC_HARD, sigma_r=1.0, sigma_s=0.0,
+                                  columns=columns, band=band, stripe=stripe)
+    st["path"] = "hamming-search"
+    return cand, dist, conf, st
+
+
+def decode(
+    frames: np.ndarray,
+    white: np.ndarray,
+    black: np.ndarray,
+    code: Code,
+    *,
+    method: str = "soft",
+    inverse: np.ndarray | None = None,
+    min_disparity: float | None = None,
+    max_disparity: float | None = None,
+    metric: str = "ml",
+    sigma_r: float = DEFAULTS["sigma_r"],
+    sigma_s: float = DEFAULTS["sigma_s"],
+    min_contrast: float = DEFAULTS["min_contrast"],
+    min_confidence: float = DEFAULTS["min_confidence"],
+    t_low: float = DEFAULTS["t_low"],
+    t_high: float = DEFAULTS["t_high"],
+    columns: int | None = None,
+    stripe: int = 1,
+    bit_depth: int | None = None,
+) -> Decoded:
+    """Decode a capture of `code` into projector columns.
+
+    frames: (n, H, W) uint8 / uint16 / float (normalised, >= 0); white, black: (H, W) frames of
+    the fully lit / dark projector, same dtype; inverse: optional (n, H, W) inverse-pattern
+    frames.  min/max_disparity: candidate columns for camera column x are those whose projector
+    columns [row*stripe, (row+1)*stripe) meet [x - max_disparity, x - min_disparity].
+    columns: codebook rows in use (projector width / stripe, default all).  See the module
+    docstring for methods, metrics and the valid mask.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+    if metric not in METRICS:
+        raise ValueError(f"metric: expected one of {', '.join(METRICS)}, got {metric!r}")
+    if not (sigma_r > 0 and sigma_s >= 0):
+        raise ValueError(f"sigma_r, sigma_s: expected sigma_r > 0 and sigma_s >= 0, got {sigma_r}, {sigma_s}")
+    if not (0 <= t_low <= t_high <= 1):
+        raise ValueError(f"t_low, t_high: expected 0 <= t_low <= t_high <= 1, got {t_low}, {t_high}")
+    if stripe < 1:
+        raise ValueError(f"stripe: expected >= 1, got {stripe}")
+    ncols = code.size if columns is None else int(columns)
+    if not 1 <= ncols <= code.size:
+        raise ValueError(f"columns: expected 1..{code.size} for code {code.name!r}, got {columns}")
+    stack = validate(frames, white, black, code, inverse=inverse, bit_depth=bit_depth)
+    h, w = stack.shape
+    band = _band_args(w, min_disparity, max_disparity)
+    if method == "hard":
+        cand, dist, conf, st = _hard(stack, code, ncols, band, stripe)
+    else:
+        cand, dist, conf, st = search(stack, code, metric=METRICS[metric], sigma_r=sigma_r,
+                                      sigma_s=sigma_s, columns=ncols, band=band, stripe=stripe)
+    contrast = (stack.white.astype(np.float32) - stack.black.astype(np.float32)) * np.float32(stack.scale)
+    base_ok = (contrast >= min_contrast) & (cand[..., 0] >= 0)
+    column = cand[..., 0].copy()
+    confidence = conf
+    valid = base_ok & (conf >= min_confidence)
+    if method in ("list", "list+median"):
+        column, valid = order_prior(cand, confidence, base_ok, t_high=t_high, t_low=t_low)
+    if method in ("median", "list+median"):
+        column, valid = confidence_median(column, confidence, valid | (base_ok & (conf < min_confidence)),
+                                          t_low=t_low, t_high=t_high)
+    column = np.where(valid, column, -1).astype(np.int32)
+    return Decoded(column=column, confidence=confidence, valid=column >= 0, candidates=cand,
+                   distances=dist, stats=st)

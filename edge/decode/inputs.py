@@ -1,0 +1,112 @@
+"""Validation of decoder inputs: frame stacks, calibration frames, inverse frames.
+
+Every check raises one `ValueError` naming what was expected and what was given. Arrays are
+never copied here (the kernels read uint8 / uint16 / float32 / float64 directly); the only
+product is the intensity scale that maps raw values to the normalised range [0, 1].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..codes import Code
+
+_INT_DTYPES = (np.uint8, np.uint16)
+_FLOAT_DTYPES = (np.float32, np.float64)
+
+
+@dataclass(frozen=True)
+class Stack:
+    """Validated decoder input (no copies of frame data).
+
+    frames: (n, H, W) raw frames; inverse: (n, H, W) or None; white, black: (H, W) of the same
+    dtype as frames; scale: factor taking raw values to normalised intensity (1/255 for uint8,
+    1/(2**bit_depth - 1) for uint16, 1 for floats, which are taken as already normalised).
+    """
+
+    frames: np.ndarray
+    inverse: np.ndarray | None
+    white: np.ndarray
+    black: np.ndarray
+    scale: float
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return int(self.frames.shape[1]), int(self.frames.shape[2])
+
+
+def _check_dtype(name: str, a: np.ndarray) -> None:
+    if a.dtype not in _INT_DTYPES + _FLOAT_DTYPES:
+        raise ValueError(
+            f"{name}: expected dtype uint8, uint16, float32 or float64, got {a.dtype}"
+        )
+    if a.dtype.kind == "f":
+        if not np.isfinite(a).all():
+            raise ValueError(f"{name}: expected finite intensities, got NaN or infinite values")
+        if a.size and float(a.min()) < 0.0:
+            raise ValueError(f"{name}: expected non-negative intensities, got minimum {float(a.min())}")
+
+
+def validate(
+    frames: np.ndarray,
+    white: np.ndarray,
+    black: np.ndarray,
+    code: Code,
+    inverse: np.ndarray | None = None,
+    bit_depth: int | None = None,
+) -> Stack:
+    """Check shapes, dtypes and values of a capture for `code`; return a `Stack`.
+
+    frames (n, H, W) with n == code.n; white, black (H, W); inverse (n, H, W) or None. All arrays
+    must share one dtype (uint8, uint16, float32 or float64). bit_depth: significant bits of
+    uint16 data (default 16); ignored for uint8 (8) and floats (already normalised to [0, 1]).
+    """
+    frames = np.asarray(frames)
+    white = np.asarray(white)
+    black = np.asarray(black)
+    if frames.ndim != 3:
+        raise ValueError(f"frames: expected a (n, H, W) stack, got shape {frames.shape}")
+    if frames.shape[0] != code.n:
+        raise ValueError(
+            f"frames: code {code.name!r} has n={code.n} frames, got a stack of {frames.shape[0]}"
+        )
+    h, w = frames.shape[1:]
+    for name, a in (("white", white), ("black", black)):
+        if a.shape != (h, w):
+            raise ValueError(f"{name}: expected shape {(h, w)} to match frames, got {a.shape}")
+    if inverse is not None:
+        inverse = np.asarray(inverse)
+        if inverse.shape != frames.shape:
+            raise ValueError(f"inverse: expected shape {frames.shape} to match frames, got {inverse.shape}")
+    arrays = [("frames", frames), ("white", white), ("black", black)]
+    if inverse is not None:
+        arrays.append(("inverse", inverse))
+    for name, a in arrays:
+        _check_dtype(name, a)
+    dtypes = {a.dtype for _, a in arrays}
+    if len(dtypes) != 1:
+        given = ", ".join(f"{name}={a.dtype}" for name, a in arrays)
+        raise ValueError(f"expected frames, white, black (and inverse) of one dtype, got {given}")
+    if h == 0 or w == 0:
+        raise ValueError(f"frames: expected a non-empty image, got shape {frames.shape}")
+    if not (white.astype(np.float64) > black.astype(np.float64)).any():
+        raise ValueError("white/black: expected white brighter than black somewhere, got white <= black everywhere")
+    dtype = frames.dtype
+    if dtype == np.uint8:
+        scale = 1.0 / 255.0
+    elif dtype == np.uint16:
+        bits = 16 if bit_depth is None else int(bit_depth)
+        if not 1 <= bits <= 16:
+            raise ValueError(f"bit_depth: expected 1..16 for uint16 frames, got {bit_depth}")
+        scale = 1.0 / (2**bits - 1)
+    else:
+        scale = 1.0
+    # Kernels index frames[i, y, x]; contiguous layout keeps that cheap.
+    frames = np.ascontiguousarray(frames)
+    white = np.ascontiguousarray(white)
+    black = np.ascontiguousarray(black)
+    if inverse is not None:
+        inverse = np.ascontiguousarray(inverse)
+    return Stack(frames=frames, inverse=inverse, white=white, black=black, scale=scale)

@@ -1,0 +1,454 @@
+"""numba kernels of the decoders (compiled once, cached on disk with ``cache=True``).
+
+Per-sample costs.  Each sample gets two non-negative costs ``e0, e1`` (one per bit value, for
+N-ary codes one per symbol) such that the distance of a codeword is ``sum_i e_i(c_i)``:
+
+* ``METRIC_ML`` (0): ``-2 log p(r | symbol)`` up to a per-pixel constant under the heteroscedastic
+  Gaussian model ``r ~ N(mu_s, sigma_r**2 + sigma_s**2 * mu_s)``, with ``mu_1`` = white and
+  ``mu_0`` = black (intensities normalised to [0, 1]); with inverse frames the sample is
+  ``r - r_inv ~ N(+-(white - black), v_white + v_black)``.  ``e0 - e1 = 2 * LLR``.
+* ``METRIC_NORMALIZED`` (1): the paper's plain normalised distance, ``(x - s)**2`` with
+  ``x = (r - black) / (white - black)`` (with inverse: ``x = ((r - r_inv)/(white - black) + 1)/2``).
+* ``METRIC_HARD`` (2): Hamming distance to the hard decision (``r > (white + black)/2`` or
+  ``r > r_inv``); the distance output is then the exact Hamming distance.
+
+Binary search.  ``y_i = round(Q * (e0 - e1))`` (int64, clipped); ``h`` = bits with ``y > 0``;
+``w_i = |y_i|``.  For any codeword c, ``cost(c) = sum_{i in c xor h} w_i`` and the distance is
+``dmin + cost / Q`` with ``dmin = sum_i min(e0, e1)``.  So the ML codeword is the one whose
+disagreement set with h has the least reliability, and the kernels search that exactly:
+
+1. reference codeword ``c_ref``: nearest codeword of h in Hamming distance (syndrome table) or
+   the re-encoded information bits of h;
+2. every other codeword is ``c_ref xor D`` with D a nonzero codeword; its cost is
+   ``cost(c_ref) + sum_{i in D} v_i`` with ``v_i = +w_i`` where c_ref agrees with h, ``-w_i``
+   where it does not;
+3. the D are visited by Hamming weight t; any D of weight >= t costs at least
+   ``min_{t' >= t} (sum of the t' smallest v)``; inside a weight class, D sharing the pattern p0
+   on positions 0..5 cost at least ``T0[p0] + (sum of the t - |p0| smallest v outside 0..5)``.
+   A class or sublist whose bound exceeds the current third-best cost is skipped, so the top-3
+   (score | column keys, ties to the lower column) is exact.
+
+Costs are summed with 64-entry subset-sum tables over 6-bit position groups.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+METRIC_ML = 0
+METRIC_NORMALIZED = 1
+METRIC_HARD = 2
+
+#: Bits of a top-3 key that hold the column; the cost sits above them.
+IDX_BITS = 16
+IDX_MASK = (1 << IDX_BITS) - 1
+NO_KEY = np.int64(1) << np.int64(62)
+#: Largest |quantised per-sample cost difference|.
+Y_CLIP = 1 << 24
+
+_U6 = np.uint64(6)
+_U63 = np.uint64(63)
+_U255 = np.uint64(255)
+_U1 = np.uint64(1)
+_U0 = np.uint64(0)
+
+
+@njit(cache=True, inline="always")
+def _pack(m, comp, nbytes):
+    out = np.int64(0)
+    for g in range(nbytes):
+        out |= comp[g, np.int64((m >> np.uint64(8 * g)) & _U255)]
+    return out
+
+
+@njit(cache=True, inline="always")
+def _insert(key, k1, k2, k3):
+    if key < k3:
+        if key < k2:
+            k3 = k2
+            if key < k1:
+                k2 = k1
+                k1 = key
+            else:
+                k2 = key
+        else:
+            k3 = key
+    return k1, k2, k3
+
+
+@njit(cache=True, inline="always")
+def _band(x, use_band, min_d, max_d, stripe, ncols):
+    """Candidate columns [lo, hi] of camera column x (empty when lo > hi)."""
+    if not use_band:
+        return 0, ncols - 1
+    lo = (x - max_d) // stripe
+    hi = (x - min_d) // stripe
+    if lo < 0:
+        lo = 0
+    if hi > ncols - 1:
+        hi = ncols - 1
+    return lo, hi
+
+
+@njit(cache=True, inline="always")
+def _sample_costs(r, ri, a, b, has_inv, metric, va, vb, la, lb):
+    """(e0, e1) of one binary sample (see module docstring)."""
+    d = a - b
+    if metric == METRIC_ML:
+        if has_inv:
+            s = r - ri
+            v = va + vb
+            e1 = (s - d) * (s - d) / v
+            e0 = (s + d) * (s + d) / v
+        else:
+            e1 = (r - a) * (r - a) / va + la
+            e0 = (r - b) * (r - b) / vb + lb
+    elif metric == METRIC_NORMALIZED:
+        if has_inv:
+            x = 0.5 * ((r - ri) / d + 1.0)
+        else:
+            x = (r - b) / d
+        e1 = (x - 1.0) * (x - 1.0)
+        e0 = x * x
+    else:
+        if has_inv:
+            one = r > ri
+        else:
+            one = r > 0.5 * (a + b)
+        e1 = 0.0 if one else 1.0
+        e0 = 1.0 if one else 0.0
+    return e0, e1
+
+
+@njit(cache=True, inline="always")
+def _pixel_llr(frames, inverse, has_inv, yy, xx, n, scale, a, b, metric, sr2, ss2, q_scale, y, w):
+    """Fill y (quantised e0 - e1) and w = |y| for one pixel; return (hard mask h, dmin)."""
+    va = sr2 + ss2 * a
+    vb = sr2 + ss2 * b
+    la = 0.0
+    lb = 0.0
+    if metric == METRIC_ML and not has_inv:
+        la = np.log(va)
+        lb = np.log(vb)
+        m = min(la, lb)
+        la -= m
+        lb -= m
+    h = _U0
+    dmin = 0.0
+    for i in range(n):
+        r = frames[i, yy, xx] * scale
+        ri = 0.0
+        if has_inv:
+            ri = inverse[i, yy, xx] * scale
+        e0, e1 = _sample_costs(r, ri, a, b, has_inv, metric, va, vb, la, lb)
+        dmin += min(e0, e1)
+        t = np.int64(np.round((e0 - e1) * q_scale))
+        if t > Y_CLIP:
+            t = Y_CLIP
+        elif t < -Y_CLIP:
+            t = -Y_CLIP
+        y[i] = t
+        if t > 0:
+            h |= _U1 << np.uint64(i)
+            w[i] = t
+        else:
+            w[i] = -t
+    return h, dmin
+
+
+@njit(cache=True, inline="always")
+def _subset_tables(v, n, ngroups, tab):
+    """tab[g, p] = sum of v over the bits of p at positions 6g.. (v = 0 beyond n)."""
+    for g in range(ngroups):
+        tab[g, 0] = 0
+        for bit in range(6):
+            pos = 6 * g + bit
+            val = v[pos] if pos < n else 0
+            half = 1 << bit
+            for p in range(half):
+                tab[g, half | p] = tab[g, p] + val
+
+
+@njit(cache=True, inline="always")
+def _cost_of(diff, tab, ngroups):
+    s = tab[0, np.int64(diff & _U63)]
+    for g in range(1, ngroups):
+        s += tab[g, np.int64((diff >> np.uint64(6 * g)) & _U63)]
+    return s
+
+
+@njit(cache=True, inline="always")
+def _sort_small(a, m):
+    for i in range(1, m):
+        t = a[i]
+        j = i - 1
+        while j >= 0 and a[j] > t:
+            a[j + 1] = a[j]
+            j -= 1
+        a[j + 1] = t
+
+
+@njit(cache=True, inline="always")
+def _write(out_col, out_dist, out_conf, yy, xx, k1, k2, k3, dmin, q_scale):
+    keys = (k1, k2, k3)
+    for j in range(3):
+        kk = keys[j]
+        if kk == NO_KEY:
+            out_col[yy, xx, j] = -1
+            out_dist[yy, xx, j] = np.inf
+        else:
+            out_col[yy, xx, j] = np.int32(kk & IDX_MASK)
+            out_dist[yy, xx, j] = np.float32(dmin + (kk >> IDX_BITS) / q_scale)
+    if k2 == NO_KEY:
+        out_conf[yy, xx] = 0.0
+    else:
+        d1 = dmin + (k1 >> IDX_BITS) / q_scale
+        d2 = dmin + (k2 >> IDX_BITS) / q_scale
+        out_conf[yy, xx] = np.float32((d2 - d1) / d2) if d2 > 0 else np.float32(0.0)
+
+
+@njit(cache=True, parallel=True)
+def soft_binary(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
+                masks, comp_info, col_of_info, comp_syn, leader, has_leader, linear,
+                diff_masks, diff_info, class_start, sub_start, sub_p0, class_sub,
+                ncols, use_band, min_d, max_d, stripe, brute_max,
+                out_col, out_dist, out_conf, out_stats):
+    """Exact top-3 soft decoding of a binary code for every pixel.
+
+    frames, inverse: (n, H, W); white, black: (H, W); outputs: out_col (H, W, 3) int32,
+    out_dist (H, W, 3) float32, out_conf (H, W) float32; out_stats (H, 2) int64 counts per row
+    of [pixels that took the brute-force path, codewords whose cost was evaluated].
+    linear=False or a band of at most brute_max columns: brute force over the candidates
+    (still exact); otherwise the pruned enumeration of the module docstring.
+    """
+    n, height, width = frames.shape
+    ngroups = (n + 5) // 6
+    nbytes_info = comp_info.shape[0]
+    nbytes_syn = comp_syn.shape[0]
+    n_out = n - min(n, 6)
+    popc = np.zeros(64, np.int64)
+    for p in range(64):
+        c = 0
+        for bit in range(6):
+            c += (p >> bit) & 1
+        popc[p] = c
+    for yy in prange(height):
+        y = np.zeros(n, np.int64)
+        w = np.zeros(n, np.int64)
+        v = np.zeros(max(n, 6 * ngroups), np.int64)
+        sv = np.zeros(n, np.int64)
+        lbc = np.zeros(n + 2, np.int64)
+        rout = np.zeros(n_out + 1, np.int64)
+        tab = np.zeros((ngroups, 64), np.int64)
+        brute_pixels = 0
+        evaluated = 0
+        for xx in range(width):
+            a = white[yy, xx] * scale
+            b = black[yy, xx] * scale
+            lo, hi = _band(xx, use_band, min_d, max_d, stripe, ncols)
+            if not (a > b) or lo > hi:
+                for j in range(3):
+                    out_col[yy, xx, j] = -1
+                    out_dist[yy, xx, j] = np.inf
+                out_conf[yy, xx] = 0.0
+                continue
+            h, dmin = _pixel_llr(frames, inverse, has_inv, yy, xx, n, scale, a, b, metric,
+                                 sr2, ss2, q_scale, y, w)
+            # reference codeword
+            if linear:
+                hinfo = _pack(h, comp_info, nbytes_info)
+                enc = masks[col_of_info[hinfo]]
+                if has_leader:
+                    syn = _pack(h ^ enc, comp_syn, nbytes_syn)
+                    cref = h ^ leader[syn]
+                else:
+                    cref = enc
+            else:
+                cref = h
+            eref = cref ^ h
+            cost_ref = np.int64(0)
+            for i in range(n):
+                if (eref >> np.uint64(i)) & _U1:
+                    v[i] = -w[i]
+                    cost_ref += w[i]
+                else:
+                    v[i] = w[i]
+            _subset_tables(v, n, ngroups, tab)
+            k1 = NO_KEY
+            k2 = NO_KEY
+            k3 = NO_KEY
+            if (not linear) or (use_band and hi - lo + 1 <= brute_max):
+                brute_pixels += 1
+                evaluated += hi - lo + 1
+                for j in range(lo, hi + 1):
+                    cost = cost_ref + _cost_of(masks[j] ^ cref, tab, ngroups)
+                    if cost <= (k3 >> IDX_BITS):
+                        k1, k2, k3 = _insert((cost << IDX_BITS) | j, k1, k2, k3)
+            else:
+                # bounds: sorted v (all positions) and sorted v outside group 0
+                for i in range(n):
+                    sv[i] = v[i]
+                _sort_small(sv, n)
+                acc = np.int64(0)
+                lbc[0] = 0
+                for t in range(1, n + 1):
+                    acc += sv[t - 1]
+                    lbc[t] = acc
+                lbc[n + 1] = NO_KEY
+                for t in range(n - 1, -1, -1):
+                    if lbc[t + 1] < lbc[t]:
+                        lbc[t] = lbc[t + 1]
+                for i in range(n_out):
+                    sv[i] = v[6 + i]
+                _sort_small(sv, n_out)
+                rout[0] = 0
+                for j in range(1, n_out + 1):
+                    rout[j] = rout[j - 1] + sv[j - 1]
+                ref_info = _pack(cref, comp_info, nbytes_info)
+                ref_col = col_of_info[ref_info]
+                evaluated += 1
+                if ref_col >= lo and ref_col <= hi:
+                    k1 = (cost_ref << IDX_BITS) | ref_col
+                for t in range(1, n + 1):
+                    if class_start[t] == class_start[t + 1]:
+                        continue
+                    if k3 != NO_KEY and cost_ref + lbc[t] > (k3 >> IDX_BITS):
+                        break
+                    for s in range(class_sub[t], class_sub[t + 1]):
+                        p0 = sub_p0[s]
+                        t0 = tab[0, p0]
+                        if k3 != NO_KEY and cost_ref + t0 + rout[t - popc[p0]] > (k3 >> IDX_BITS):
+                            continue
+                        for e in range(sub_start[s], sub_start[s + 1]):
+                            d = diff_masks[e]
+                            cost = cost_ref + t0
+                            for g in range(1, ngroups):
+                                cost += tab[g, np.int64((d >> np.uint64(6 * g)) & _U63)]
+                            evaluated += 1
+                            if cost > (k3 >> IDX_BITS):
+                                continue
+                            col = col_of_info[ref_info ^ diff_info[e]]
+                            if col < lo or col > hi:
+                                continue
+                            k1, k2, k3 = _insert((cost << IDX_BITS) | col, k1, k2, k3)
+            _write(out_col, out_dist, out_conf, yy, xx, k1, k2, k3, dmin, q_scale)
+        out_stats[yy, 0] = brute_pixels
+        out_stats[yy, 1] = evaluated
+
+
+@njit(cache=True, parallel=True)
+def hard_syndrome(frames, inverse, has_inv, white, black, scale, masks, comp_info, col_of_info,
+                  comp_syn, leader, d_min, ncols, use_band, min_d, max_d, stripe,
+                  out_col, out_d1):
+    """Hard decision + coset-leader decoding of a binary linear code.
+
+    Binarises r > (white + black)/2 (or r > r_inv), decodes to the nearest codeword in Hamming
+    distance.  out_col (H, W) int32 (-1 where white <= black or the column is outside the
+    projector / band), out_d1 (H, W) int32 Hamming distance to the decoded codeword.
+    """
+    n, height, width = frames.shape
+    nbytes_info = comp_info.shape[0]
+    nbytes_syn = comp_syn.shape[0]
+    for yy in prange(height):
+        for xx in range(width):
+            a = white[yy, xx]
+            b = black[yy, xx]
+            if not (a > b):
+                out_col[yy, xx] = -1
+                out_d1[yy, xx] = n
+                continue
+            h = _U0
+            if has_inv:
+                for i in range(n):
+                    if frames[i, yy, xx] > inverse[i, yy, xx]:
+                        h |= _U1 << np.uint64(i)
+            else:
+                thr = 0.5 * (np.float64(a) + np.float64(b))
+                for i in range(n):
+                    if frames[i, yy, xx] > thr:
+                        h |= _U1 << np.uint64(i)
+            enc = masks[col_of_info[_pack(h, comp_info, nbytes_info)]]
+            e = leader[_pack(h ^ enc, comp_syn, nbytes_syn)]
+            c = h ^ e
+            col = col_of_info[_pack(c, comp_info, nbytes_info)]
+            lo, hi = _band(xx, use_band, min_d, max_d, stripe, ncols)
+            d1 = 0
+            while e:
+                e &= e - _U1
+                d1 += 1
+            out_d1[yy, xx] = d1
+            out_col[yy, xx] = col if (col >= lo and col <= hi) else -1
+
+
+@njit(cache=True, parallel=True)
+def soft_nary(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, q,
+              codebook, ncols, use_band, min_d, max_d, stripe, out_col, out_dist, out_conf):
+    """Exact top-3 over the codebook rows in the band for an N-ary code (q levels).
+
+    Symbol s has level mu_s = black + (white - black) * s / (q - 1) (with inverse frames the
+    difference r - r_inv has mean (white - black) * (2 s / (q - 1) - 1)); per-sample costs as
+    in the module docstring (ML: Gaussian -2 log-likelihood; normalised: (x - s/(q-1))**2;
+    hard: 0 for the nearest level, 1 otherwise).  Brute force over the candidate rows.
+    """
+    n, height, width = frames.shape
+    for yy in prange(height):
+        e = np.zeros((n, q), np.float64)
+        eq = np.zeros((n, q), np.int64)
+        for xx in range(width):
+            a = white[yy, xx] * scale
+            b = black[yy, xx] * scale
+            lo, hi = _band(xx, use_band, min_d, max_d, stripe, ncols)
+            if not (a > b) or lo > hi:
+                for j in range(3):
+                    out_col[yy, xx, j] = -1
+                    out_dist[yy, xx, j] = np.inf
+                out_conf[yy, xx] = 0.0
+                continue
+            d = a - b
+            dmin = 0.0
+            for i in range(n):
+                r = frames[i, yy, xx] * scale
+                ri = inverse[i, yy, xx] * scale if has_inv else 0.0
+                best = np.inf
+                for s in range(q):
+                    frac = s / (q - 1)
+                    if has_inv:
+                        mu = d * (2.0 * frac - 1.0)
+                        obs = r - ri
+                        var = 2.0 * sr2 + ss2 * (b + d * frac + b + d * (1.0 - frac))
+                    else:
+                        mu = b + d * frac
+                        obs = r
+                        var = sr2 + ss2 * mu
+                    if metric == METRIC_ML:
+                        val = (obs - mu) * (obs - mu) / var + np.log(var)
+                    else:
+                        x = (obs - mu) / d
+                        val = x * x
+                    e[i, s] = val
+                    if val < best:
+                        best = val
+                if metric == METRIC_HARD:
+                    arg = 0
+                    for s in range(q):
+                        if e[i, s] == best:
+                            arg = s
+                            break
+                    for s in range(q):
+                        e[i, s] = 0.0 if s == arg else 1.0
+                    best = 0.0
+                dmin += best
+                for s in range(q):
+                    t = np.int64(np.round((e[i, s] - best) * q_scale))
+                    eq[i, s] = min(t, Y_CLIP)
+            k1 = NO_KEY
+            k2 = NO_KEY
+            k3 = NO_KEY
+            for j in range(lo, hi + 1):
+                cost = np.int64(0)
+                for i in range(n):
+                    cost += eq[i, codebook[j, i]]
+                if cost <= (k3 >> IDX_BITS):
+                    k1, k2, k3 = _insert((cost << IDX_BITS) | j, k1, k2, k3)
+            _write(out_col, out_dist, out_conf, yy, xx, k1, k2, k3, dmin, q_scale)

@@ -1,0 +1,254 @@
+"""Per-code lookup tables for the numba decoders (built once per code, cached).
+
+Binary codewords are packed into uint64 masks with bit ``i`` = frame ``i`` (n <= 64).  An
+*information set* ``I`` is a set of k positions on which the codebook takes every k-bit value
+exactly once; ``col_of_info[pack_I(c)]`` maps a codeword to its column.  For linear codes the
+complement ``J`` carries the syndrome and a coset-leader table gives the nearest codeword of a
+hard-decision word in Hamming distance (for n - k <= `MAX_SYNDROME_BITS`).
+
+The soft decoder enumerates differences ``D`` (nonzero codewords of a linear code) sorted by
+Hamming weight and, inside a weight class, by their pattern on positions 0..5 (group 0), which
+is what its branch-and-bound prunes on.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..codes import Code
+
+#: Largest n - k for which a full coset-leader table (2**(n-k) entries) is built.
+MAX_SYNDROME_BITS = 20
+#: Bits per lookup-table group in the cost kernels (tables of 2**GROUP_BITS entries).
+GROUP_BITS = 6
+
+
+@dataclass(frozen=True, eq=False)
+class CodeTables:
+    """Packed codebook and search structures of a code (see module docstring).
+
+    Attributes (binary codes; N-ary codes only fill ``codebook``):
+        n, k, q, size: code parameters; size = number of codewords (columns).
+        codebook: (size, n) uint8 symbols.
+        masks: (size,) uint64 packed codewords (bit i = frame i).
+        info: (k,) int64 information positions, or empty if none found.
+        comp_info: (ceil(n/8), 256) int64 byte tables; OR of the looked-up entries packs the
+            information bits of a mask into a k-bit index.
+        col_of_info: (2**k,) int32 column of each information pattern.
+        linear: the codeword set is closed under XOR (a binary linear code).
+        comp_syn: (ceil(n/8), 256) int64 byte tables packing the J bits (syndrome) of a mask.
+        leader: (2**(n-k),) uint64 coset leaders (minimum-weight masks), empty if too large.
+        diff_masks, diff_info: nonzero codewords sorted by (weight, pattern on group 0), and
+            their packed information bits.
+        class_start: (n + 2,) int64 start of each weight class in diff_* (class t = weight t).
+        sub_start: (S + 1,) int64 starts of sublists sharing weight and group-0 pattern.
+        sub_p0, sub_weight: (S,) int64 group-0 pattern and weight of each sublist.
+        class_sub: (n + 2,) int64 first sublist of each weight class.
+    """
+
+    n: int
+    k: int
+    q: int
+    size: int
+    d_min: int
+    codebook: np.ndarray
+    masks: np.ndarray
+    info: np.ndarray
+    comp_info: np.ndarray
+    col_of_info: np.ndarray
+    linear: bool
+    comp_syn: np.ndarray
+    leader: np.ndarray
+    diff_masks: np.ndarray
+    diff_info: np.ndarray
+    class_start: np.ndarray
+    sub_start: np.ndarray
+    sub_p0: np.ndarray
+    sub_weight: np.ndarray
+    class_sub: np.ndarray
+
+    @property
+    def has_info(self) -> bool:
+        return self.info.size == self.k and self.k > 0
+
+    @property
+    def has_leader(self) -> bool:
+        return self.leader.size > 0
+
+
+def pack_masks(codebook: np.ndarray) -> np.ndarray:
+    """(M, n) 0/1 rows -> (M,) uint64 with bit i = column i (n <= 64)."""
+    cb = np.asarray(codebook)
+    n = cb.shape[1]
+    if n > 64:
+        raise ValueError(f"binary decoders support n <= 64 frames, got n={n}")
+    weights = np.left_shift(np.uint64(1), np.arange(n, dtype=np.uint64))
+    return (cb.astype(np.uint64) * weights).sum(axis=1, dtype=np.uint64)
+
+
+def _compress_tables(positions: np.ndarray, n: int) -> np.ndarray:
+    """Byte tables that gather the bits at `positions` of a mask into consecutive bits 0.."""
+    nbytes = max(1, (n + 7) // 8)
+    table = np.zeros((nbytes, 256), dtype=np.int64)
+    values = np.arange(256, dtype=np.int64)
+    for out_bit, pos in enumerate(positions):
+        g, b = divmod(int(pos), 8)
+        table[g] |= ((values >> b) & 1) << out_bit
+    return table
+
+
+def _compress(masks: np.ndarray, table: np.ndarray) -> np.ndarray:
+    out = np.zeros(masks.shape, dtype=np.int64)
+    m = masks.astype(np.uint64)
+    for g in range(table.shape[0]):
+        out |= table[g][((m >> np.uint64(8 * g)) & np.uint64(255)).astype(np.int64)]
+    return out
+
+
+def _independent_columns(cb: np.ndarray) -> list[int]:
+    """Greedy set of codebook positions whose columns (as GF(2) vectors over rows) are independent."""
+    chosen: list[int] = []
+    basis: dict[int, int] = {}
+    for i in range(cb.shape[1]):
+        v = int.from_bytes(np.packbits(cb[:, i].astype(np.uint8)).tobytes(), "big")
+        while v:
+            lead = v.bit_length() - 1
+            if lead in basis:
+                v ^= basis[lead]
+            else:
+                basis[lead] = v
+                chosen.append(i)
+                break
+    return chosen
+
+
+def _information_set(cb: np.ndarray, k: int) -> np.ndarray:
+    """k positions on which the codebook is a bijection onto k-bit strings, or empty."""
+    size, n = cb.shape
+    candidates = [list(range(k))]
+    indep = _independent_columns(cb)
+    if len(indep) >= k:
+        candidates.append(indep[:k])
+    for pos in candidates:
+        pos_arr = np.array(pos, dtype=np.int64)
+        idx = (cb[:, pos_arr].astype(np.int64) << np.arange(k, dtype=np.int64)).sum(axis=1)
+        if np.unique(idx).size == size:
+            return pos_arr
+    return np.zeros(0, dtype=np.int64)
+
+
+def _coset_leaders(masks: np.ndarray, comp_syn: np.ndarray, comp_info: np.ndarray,
+                   col_of_info: np.ndarray, n: int, r: int) -> np.ndarray:
+    """Minimum-weight error mask of every syndrome (2**r entries), by increasing weight."""
+    leader = np.zeros(2**r, dtype=np.uint64)
+    found = np.zeros(2**r, dtype=bool)
+    found[0] = True
+    remaining = 2**r - 1
+    # Errors of weight w: syndrome of e = J-bits of (e xor encode(info bits of e)).
+    frontier = np.zeros(1, dtype=np.uint64)
+    weight = 0
+    while remaining > 0 and weight < n:
+        weight += 1
+        # Extend every frontier pattern by one bit above its highest set bit (each set once).
+        highest = np.where(frontier == 0, -1, np.floor(np.log2(np.maximum(frontier, 1).astype(np.float64))).astype(np.int64))
+        new = []
+        for b in range(n):
+            sel = frontier[highest < b]
+            if sel.size:
+                new.append(sel | np.uint64(1 << b))
+        frontier = np.concatenate(new) if new else np.zeros(0, dtype=np.uint64)
+        if frontier.size == 0:
+            break
+        enc = masks[col_of_info[_compress(frontier, comp_info)]]
+        syn = _compress(frontier ^ enc, comp_syn)
+        order = np.argsort(syn, kind="stable")
+        syn_s, fr_s = syn[order], frontier[order]
+        first = np.ones(syn_s.size, dtype=bool)
+        first[1:] = syn_s[1:] != syn_s[:-1]
+        syn_u, fr_u = syn_s[first], fr_s[first]
+        new_mask = ~found[syn_u]
+        leader[syn_u[new_mask]] = fr_u[new_mask]
+        found[syn_u[new_mask]] = True
+        remaining -= int(new_mask.sum())
+    if remaining:
+        raise AssertionError("coset leader search did not cover every syndrome")
+    return leader
+
+
+@functools.lru_cache(maxsize=32)
+def _tables_cached(code: Code) -> CodeTables:
+    cb = np.asarray(code.codebook, dtype=np.uint8)
+    size, n = cb.shape
+    k = code.k
+    empty64 = np.zeros(0, dtype=np.int64)
+    emptyu = np.zeros(0, dtype=np.uint64)
+    if code.q != 2:
+        return CodeTables(
+            n=n, k=k, q=code.q, size=size, d_min=code.d_min, codebook=cb, masks=emptyu,
+            info=empty64, comp_info=np.zeros((1, 256), np.int64), col_of_info=np.zeros(0, np.int32),
+            linear=False, comp_syn=np.zeros((1, 256), np.int64), leader=emptyu, diff_masks=emptyu,
+            diff_info=empty64, class_start=np.zeros(n + 2, np.int64), sub_start=np.zeros(1, np.int64),
+            sub_p0=empty64, sub_weight=empty64, class_sub=np.zeros(n + 2, np.int64),
+        )
+    masks = pack_masks(cb)
+    info = _information_set(cb, k)
+    comp_info = _compress_tables(info, n)
+    col_of_info = np.full(2**k, -1, dtype=np.int32)
+    if info.size == k:
+        col_of_info[_compress(masks, comp_info)] = np.arange(size, dtype=np.int32)
+    mask_set = set(masks.tolist())
+    linear = bool(info.size == k and 0 in mask_set and size > 0)
+    if linear:
+        # closed under XOR iff every sum of two "unit" codewords is in the set; check all pairs
+        # against the basis (codewords with one information bit set) plus a full membership test.
+        units = masks[col_of_info[1 << np.arange(k)]]
+        sums = np.zeros(size, dtype=np.uint64)
+        idx = _compress(masks, comp_info)
+        for t in range(k):
+            sums ^= np.where((idx >> t) & 1, units[t], np.uint64(0))
+        linear = bool(np.array_equal(sums, masks))
+    comp_syn = np.zeros((1, 256), np.int64)
+    leader = emptyu
+    if linear:
+        rest = np.setdiff1d(np.arange(n), info)
+        comp_syn = _compress_tables(rest, n)
+        if n - k <= MAX_SYNDROME_BITS:
+            leader = _coset_leaders(masks, comp_syn, comp_info, col_of_info, n, n - k)
+    diff_masks = emptyu
+    diff_info = empty64
+    class_start = np.zeros(n + 2, np.int64)
+    sub_start = np.zeros(1, np.int64)
+    sub_p0 = empty64
+    sub_weight = empty64
+    class_sub = np.zeros(n + 2, np.int64)
+    if linear:
+        nz = masks[masks != 0]
+        weight = np.bitwise_count(nz).astype(np.int64)
+        p0 = (nz & np.uint64((1 << GROUP_BITS) - 1)).astype(np.int64)
+        order = np.lexsort((p0, weight))
+        diff_masks = np.ascontiguousarray(nz[order])
+        diff_info = _compress(diff_masks, comp_info)
+        weight, p0 = weight[order], p0[order]
+        class_start = np.searchsorted(weight, np.arange(n + 2)).astype(np.int64)
+        key = weight * (1 << GROUP_BITS) + p0
+        starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]]) if key.size else empty64
+        sub_start = np.r_[starts, key.size].astype(np.int64)
+        sub_p0 = p0[starts].astype(np.int64)
+        sub_weight = weight[starts].astype(np.int64)
+        class_sub = np.searchsorted(sub_weight, np.arange(n + 2)).astype(np.int64)
+    return CodeTables(
+        n=n, k=k, q=2, size=size, d_min=code.d_min, codebook=cb, masks=masks, info=info,
+        comp_info=comp_info, col_of_info=col_of_info, linear=linear, comp_syn=comp_syn,
+        leader=leader, diff_masks=diff_masks, diff_info=diff_info, class_start=class_start,
+        sub_start=sub_start, sub_p0=sub_p0, sub_weight=sub_weight, class_sub=class_sub,
+    )
+
+
+def code_tables(code: Code) -> CodeTables:
+    """Lookup tables of `code` (cached per Code instance)."""
+    if code.q == 2 and code.n > 64:
+        raise ValueError(f"code {code.name!r}: binary decoders support n <= 64 frames, got n={code.n}")
+    return _tables_cached(code)

@@ -1,0 +1,22 @@
+"""Error detection (CRC) driven adaptive re-projection, and the Gupta et al. 2011 ensemble baseline.
+
+Public API::
+
+    AdaptiveScan(scheme, projector_width, height, *, stripe=1, max_rounds=3, ...)
+        .start() -> frames; .update(captured) -> RoundResult; .next_frames() -> frames | None; .result()
+    run_adaptive(scene, camera, scheme, *, rng=0, stripe=1, max_rounds=3, ...) -> AdaptiveResult
+    EdcScheme(code), EnsembleScheme(codes=None, min_agree=2), gupta_codes(k), ensemble_vote(columns)
+    maxminsw_code(k=10) -> Code (family "maxminsw")
+    lookup_columns(frames, white, black, code) -> column or -1 (the EDC check)
+"""
+
+from .adaptive import AdaptiveResult, AdaptiveScan, RoundResult, run_adaptive
+from .gupta import EnsembleScheme, ensemble_vote, gupta_codes
+from .lookup import lookup_columns
+from .maxminsw import maxminsw_code
+from .scheme import EdcScheme
+
+__all__ = [
+    "AdaptiveResult", "AdaptiveScan", "EdcScheme", "EnsembleScheme", "RoundResult", "ensemble_vote",
+    "gupta_codes", "lookup_columns", "maxminsw_code", "run_adaptive",
+]

@@ -1,0 +1,60 @@
+"""What an adaptive round projects and how a pixel passes: the EDC scheme (one CRC code).
+
+A *scheme* is the per-round pattern set of an adaptive structured-light loop plus its per-pixel
+acceptance rule.  `AdaptiveScan` drives any object with this interface:
+
+    name: str                      -- printed in reports
+    n_frames: int                  -- pattern frames per round (calibration frames not included)
+    codes: tuple[Code, ...]        -- the codes projected, in order
+    profiles(projector_width, stripe) -> (n_frames, projector_width) float32 in [0, 1]
+    decide(frames, white, black) -> (column int32 (P,), passed bool (P,))
+
+``frames`` is (n_frames, P) samples of P camera pixels, ``white``/``black`` (P,) their
+calibration samples.  `EdcScheme` accepts a pixel when its binarised word is a codeword (the
+parameter-free CRC check); `edge.edc.gupta.EnsembleScheme` accepts it when two of four codes agree.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from edge.codes import Code, get_code
+
+from .lookup import lookup_columns, membership_table
+
+
+def code_profiles(code: Code, projector_width: int, stripe: int) -> np.ndarray:
+    """(n, projector_width) float32 0/1: projector column x sends codebook row x // stripe (dark beyond)."""
+    rows = np.arange(projector_width) // stripe
+    covered = rows < code.size
+    out = np.zeros((code.n, projector_width), dtype=np.float32)
+    out[:, covered] = code.codebook[rows[covered]].T
+    return out
+
+
+class EdcScheme:
+    """One systematic code with error-detecting redundancy (e.g. ``xor02-10+crc5``).
+
+    A pixel passes when its hard-decision word is exactly a codeword; its column is that
+    codeword's index.  Every pattern of fewer than d_min bit errors is detected.
+    """
+
+    def __init__(self, code: Code | str) -> None:
+        c = get_code(code) if isinstance(code, str) else code
+        if not isinstance(c, Code):
+            raise ValueError(f"EdcScheme needs an edge.codes.Code or a code name, got {type(code).__name__}")
+        membership_table(c)  # validates binary and n <= MAX_TABLE_BITS
+        self.code = c
+        self.codes = (c,)
+        self.name = c.name
+        self.n_frames = c.n
+
+    def profiles(self, projector_width: int, stripe: int) -> np.ndarray:
+        return code_profiles(self.code, projector_width, stripe)
+
+    def decide(self, frames: np.ndarray, white: np.ndarray, black: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        column = lookup_columns(frames, white, black, self.code)
+        return column, column >= 0
+
+    def __repr__(self) -> str:
+        return f"EdcScheme({self.code!r})"

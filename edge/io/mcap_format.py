@@ -1,0 +1,144 @@
+"""What an edge MCAP recording contains: topics, schemas, and numpy <-> message conversion.
+
+Topics (``<device>`` is ``profile.zenoh.device``; log_time = the frame's timestamp in ns):
+
+==========================  ==========================  =======================================
+topic                       schema (encoding)           content
+==========================  ==========================  =======================================
+``/<device>/raw``           foxglove.RawImage (pb)      every camera frame (patterns, white /
+                                                        black calibration frames, EDC frames):
+                                                        ``mono8`` (uint8) or ``mono16`` (uint16
+                                                        LE); MCAP ``sequence`` = frame sequence
+``/<device>/raw_info``      edge.FrameInfo (json)       one per raw frame, written just before
+                                                        it: sequence, timestamp_ns, stack,
+                                                        projector_frame, exposure_us, role, +
+                                                        backend-specific keys
+``/<device>/depth``         foxglove.RawImage (pb)      ``16UC1`` millimetres, 0 = invalid
+``/<device>/confidence``    foxglove.RawImage (pb)      ``mono8``, higher = more confident
+``/<device>/output_info``   edge.OutputInfo (json)      one per depth map, just before it:
+                                                        stack, sequence, timestamp_ns + extras
+``/<device>/stack``         edge.StackInfo (json)       per-stack metadata from the runtime
+``/<device>/calibration``   foxglove.CameraCalibration  camera intrinsics from the profile
+                            (pb)                        geometry (plumb_bob, zero distortion)
+==========================  ==========================  =======================================
+
+Metadata records: ``edge.profile`` {"name", "json" (profile_to_dict as JSON), "sha256"} and
+``edge.sensor`` (free str -> str map from the backend). Attachment ``profile.json`` holds the same
+profile JSON (media type application/json). MCAP header profile: ``edge``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from typing import Any
+
+import numpy as np
+from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
+from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
+
+__all__ = [
+    "MCAP_PROFILE",
+    "PROFILE_METADATA",
+    "SENSOR_METADATA",
+    "PROFILE_ATTACHMENT",
+    "topics",
+    "image_to_raw",
+    "raw_to_image",
+    "camera_calibration",
+    "profile_json",
+    "JSON_SCHEMAS",
+]
+
+MCAP_PROFILE = "edge"
+PROFILE_METADATA = "edge.profile"
+SENSOR_METADATA = "edge.sensor"
+PROFILE_ATTACHMENT = "profile.json"
+
+# Encodings written for each dtype, and the dtype read back for each encoding.
+_RAW_ENCODING = {np.dtype(np.uint8): "mono8", np.dtype(np.uint16): "mono16"}
+_DECODE = {"mono8": np.dtype(np.uint8), "8UC1": np.dtype(np.uint8),
+           "mono16": np.dtype("<u2"), "16UC1": np.dtype("<u2")}
+
+JSON_SCHEMAS: dict[str, dict[str, Any]] = {
+    "edge.FrameInfo": {
+        "type": "object",
+        "properties": {
+            "sequence": {"type": "integer"}, "timestamp_ns": {"type": "integer"},
+            "stack": {"type": "integer"}, "projector_frame": {"type": "integer"},
+            "exposure_us": {"type": "number"}, "role": {"type": "string"},
+        },
+    },
+    "edge.OutputInfo": {
+        "type": "object",
+        "properties": {
+            "stack": {"type": "integer"}, "sequence": {"type": "integer"},
+            "timestamp_ns": {"type": "integer"},
+        },
+    },
+    "edge.StackInfo": {"type": "object", "properties": {"stack": {"type": "integer"}}},
+}
+
+
+def topics(device: str) -> dict[str, str]:
+    """Topic names for one device: keys raw, raw_info, depth, confidence, output_info, stack, calibration."""
+    return {leaf: f"/{device}/{leaf}" for leaf in
+            ("raw", "raw_info", "depth", "confidence", "output_info", "stack", "calibration")}
+
+
+def _timestamp(msg: Any, timestamp_ns: int) -> None:
+    msg.timestamp.seconds = int(timestamp_ns) // 1_000_000_000
+    msg.timestamp.nanos = int(timestamp_ns) % 1_000_000_000
+
+
+def image_to_raw(image: np.ndarray, *, timestamp_ns: int, frame_id: str = "camera",
+                 encoding: str | None = None) -> RawImage:
+    """A foxglove.RawImage from an (H, W) uint8 or uint16 array (uint16 stored little-endian).
+
+    ``encoding`` defaults to ``mono8`` / ``mono16``; pass ``16UC1`` for depth.
+    """
+    image = np.asarray(image)
+    if image.ndim != 2 or image.dtype not in _RAW_ENCODING:
+        raise ValueError(f"expected an (H, W) uint8 or uint16 image, got shape {image.shape} dtype {image.dtype}")
+    if encoding is None:
+        encoding = _RAW_ENCODING[image.dtype]
+    if _DECODE.get(encoding, None) is None or _DECODE[encoding].itemsize != image.dtype.itemsize:
+        raise ValueError(f"expected an encoding matching dtype {image.dtype}, got {encoding!r}")
+    data = np.ascontiguousarray(image, dtype=image.dtype.newbyteorder("<")).tobytes()
+    msg = RawImage(frame_id=frame_id, width=image.shape[1], height=image.shape[0], encoding=encoding,
+                   step=image.shape[1] * image.dtype.itemsize, data=data)
+    _timestamp(msg, timestamp_ns)
+    return msg
+
+
+def raw_to_image(msg: RawImage) -> np.ndarray:
+    """The (H, W) array of a foxglove.RawImage (mono8 / 8UC1 -> uint8, mono16 / 16UC1 -> uint16)."""
+    dtype = _DECODE.get(msg.encoding)
+    if dtype is None:
+        raise ValueError(f"expected a RawImage encoding in {sorted(_DECODE)}, got {msg.encoding!r}")
+    row = msg.width * dtype.itemsize
+    if msg.step < row or len(msg.data) < msg.step * msg.height:
+        raise ValueError(f"RawImage of {msg.width}x{msg.height} {msg.encoding} with step {msg.step} "
+                         f"needs {msg.step * msg.height} bytes, got {len(msg.data)}")
+    flat = np.frombuffer(msg.data, dtype=np.uint8, count=msg.step * msg.height).reshape(msg.height, msg.step)
+    out = flat[:, :row].copy().view(dtype).reshape(msg.height, msg.width)
+    return out.astype(dtype.newbyteorder("="), copy=False)
+
+
+def camera_calibration(geometry: Any, width: int, height: int, *, timestamp_ns: int = 0,
+                       frame_id: str = "camera") -> CameraCalibration:
+    """foxglove.CameraCalibration of the rectified camera in a profile's geometry (no distortion)."""
+    f, cx, cy = float(geometry.focal_px), float(geometry.cx_camera), float(geometry.cy)
+    msg = CameraCalibration(frame_id=frame_id, width=int(width), height=int(height),
+                            distortion_model="plumb_bob", D=[0.0] * 5,
+                            K=[f, 0.0, cx, 0.0, f, cy, 0.0, 0.0, 1.0],
+                            R=[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+                            P=[f, 0.0, cx, 0.0, 0.0, f, cy, 0.0, 0.0, 0.0, 1.0, 0.0])
+    _timestamp(msg, timestamp_ns)
+    return msg
+
+
+def profile_json(profile_dict: dict[str, Any]) -> tuple[str, str]:
+    """(canonical JSON text, sha256 hex) of a profile dict."""
+    text = json.dumps(profile_dict, sort_keys=True, separators=(",", ":"))
+    return text, hashlib.sha256(text.encode()).hexdigest()

@@ -1,0 +1,142 @@
+"""`recover(path, out_path)`: salvage a recording whose writer died without ``finish()``.
+
+A SIGKILLed writer leaves the header, metadata, attachments and every chunk it completed, then
+possibly part of a chunk, and no summary or footer. `recover` reads the file record by record
+(chunk CRCs checked), stops at the first incomplete or corrupt record, and writes everything
+before it (schemas, channels, messages, metadata, attachments) into a new, finalised MCAP file with
+the same chunk compression. It returns a `RecoveryReport`; a file that is fine is simply copied
+record by record (``report.complete_input`` is True). Non-MCAP input raises `NotMcapError`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+from dataclasses import dataclass, field
+
+from mcap.exceptions import McapError
+from mcap.records import Attachment, Channel, Chunk, Footer, Header, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.writer import CompressionType, Writer
+
+from .mcap_format import MCAP_PROFILE
+from .mcap_reader import MCAP_MAGIC, NotMcapError, _reason
+
+__all__ = ["RecoveryReport", "recover"]
+
+_COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "": CompressionType.NONE}
+
+
+@dataclass
+class RecoveryReport:
+    path: str
+    out_path: str
+    total_bytes: int            # size of the damaged input
+    recovered_bytes: int        # input bytes up to the end of the last complete record
+    chunks: int                 # complete chunks copied
+    messages: int
+    topics: dict[str, int] = field(default_factory=dict)   # messages per topic
+    stacks: list[int] = field(default_factory=list)        # stack ids seen in raw_info messages
+    first_log_time: int | None = None
+    last_log_time: int | None = None
+    complete_input: bool = False  # the input had a footer (nothing was lost)
+    reason: str = ""              # why reading stopped, if it stopped early
+
+    def __str__(self) -> str:
+        head = (f"recovered {self.messages} messages in {self.chunks} chunks "
+                f"({self.recovered_bytes} of {self.total_bytes} bytes) from {self.path} into {self.out_path}")
+        if self.complete_input:
+            return head + "; the input was complete"
+        topics = ", ".join(f"{t}: {n}" for t, n in sorted(self.topics.items()))
+        lost = self.total_bytes - self.recovered_bytes
+        return f"{head}; {lost} trailing bytes dropped ({self.reason}); per topic: {topics or 'none'}"
+
+
+def recover(path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
+            chunk_size: int = 4 * 1024 * 1024) -> RecoveryReport:
+    """Copy the readable part of ``path`` into a finalised MCAP at ``out_path``; see the module doc."""
+    path, out_path = os.fspath(path), os.fspath(out_path)
+    if os.path.abspath(path) == os.path.abspath(out_path):
+        raise ValueError(f"expected an output path different from the input, got {out_path!r} for both")
+    total = os.path.getsize(path)
+    with open(path, "rb") as f:
+        head = f.read(len(MCAP_MAGIC))
+    if head != MCAP_MAGIC:
+        raise NotMcapError(f"{path}: not an MCAP file (expected magic {MCAP_MAGIC!r}, got {head!r})")
+
+    report = RecoveryReport(path=path, out_path=out_path, total_bytes=total,
+                            recovered_bytes=len(MCAP_MAGIC), chunks=0, messages=0)
+    # Pass 1: find the compression and the header profile without writing anything.
+    compression, header_profile = CompressionType.ZSTD, MCAP_PROFILE
+    library = "edge recover"
+    with open(path, "rb") as f:
+        try:
+            for record in StreamReader(f, emit_chunks=True, record_size_limit=max(total, 1)).records:
+                if isinstance(record, Header):
+                    header_profile, library = record.profile, record.library or library
+                if isinstance(record, Chunk):
+                    compression = _COMPRESSION.get(record.compression, CompressionType.ZSTD)
+                    break
+        except (McapError, struct.error, ValueError, EOFError):
+            pass
+
+    schema_map: dict[int, int] = {}
+    channel_map: dict[int, int] = {}
+    topics_by_id: dict[int, str] = {}
+    stacks: set[int] = set()
+    with open(out_path, "wb") as out, open(path, "rb") as f:
+        writer = Writer(out, chunk_size=chunk_size, compression=compression, enable_crcs=True,
+                        enable_data_crcs=True)
+        writer.start(profile=header_profile, library=library)
+        try:
+            reader = StreamReader(f, emit_chunks=True, validate_crcs=True, record_size_limit=max(total, 1))
+            for record in reader.records:
+                end = f.tell()
+                if isinstance(record, Chunk):
+                    inner = breakup_chunk(record, validate_crc=True)  # raises on a corrupt chunk
+                    for r in inner:
+                        _copy(writer, r, schema_map, channel_map, topics_by_id, report, stacks)
+                    report.chunks += 1
+                elif isinstance(record, Footer):
+                    report.complete_input = True
+                    report.recovered_bytes = total
+                    break
+                elif isinstance(record, (Schema, Channel, Message, Metadata, Attachment)):
+                    _copy(writer, record, schema_map, channel_map, topics_by_id, report, stacks)
+                report.recovered_bytes = end
+        except (McapError, struct.error, ValueError, EOFError, KeyError) as exc:
+            report.reason = f"{_reason(exc)} at byte {report.recovered_bytes}"
+        finally:
+            writer.finish()
+    report.stacks = sorted(stacks)
+    return report
+
+
+def _copy(writer: Writer, r: object, schema_map: dict[int, int], channel_map: dict[int, int],
+          topics_by_id: dict[int, str], report: RecoveryReport, stacks: set[int]) -> None:
+    if isinstance(r, Schema):
+        if r.id not in schema_map:
+            schema_map[r.id] = writer.register_schema(r.name, r.encoding, r.data)
+    elif isinstance(r, Channel):
+        if r.id not in channel_map:
+            channel_map[r.id] = writer.register_channel(r.topic, r.message_encoding,
+                                                        schema_map.get(r.schema_id, 0), dict(r.metadata))
+            topics_by_id[r.id] = r.topic
+    elif isinstance(r, Message):
+        writer.add_message(channel_map[r.channel_id], r.log_time, r.data, r.publish_time, r.sequence)
+        topic = topics_by_id[r.channel_id]
+        report.messages += 1
+        report.topics[topic] = report.topics.get(topic, 0) + 1
+        if report.first_log_time is None:
+            report.first_log_time = r.log_time
+        report.last_log_time = r.log_time
+        if topic.endswith("/raw_info"):
+            try:
+                stacks.add(int(json.loads(r.data).get("stack", -1)))
+            except (ValueError, AttributeError):
+                pass
+    elif isinstance(r, Metadata):
+        writer.add_metadata(r.name, dict(r.metadata))
+    elif isinstance(r, Attachment):
+        writer.add_attachment(r.create_time, r.log_time, r.name, r.media_type, r.data)

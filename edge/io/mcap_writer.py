@@ -1,0 +1,221 @@
+"""`Recorder`: write an edge recording (layout in `edge.io.mcap_format`) to an MCAP file.
+
+Usage::
+
+    with Recorder("out.mcap", profile, sensor_metadata={"backend": "sim"}) as rec:
+        rec.write_frame(frame)                       # any object with image, sequence,
+                                                     # timestamp_ns, stack, projector_frame,
+                                                     # exposure_us (edge.sensors Frame)
+        rec.write_raw(image, sequence=7, timestamp_ns=t, stack=0, projector_frame=3, role="pattern")
+        rec.write_stack({"stack": 0, "frames": 24, "edc_rounds": 1}, timestamp_ns=t)
+        rec.write_depth(depth_mm_u16, confidence_u8, timestamp_ns=t, stack=0, sequence=0)
+    # finish() ran: summary, indexes and CRCs are written even if the block raised.
+
+Chunked (``profile.recording.chunk_size`` bytes), compressed (``profile.recording.compression``),
+chunk / data-section / summary CRCs on. Every write takes a lock, so a capture thread and a decode
+thread may share one Recorder. The file object is flushed after every write, so a killed process
+leaves every completed chunk on disk for `edge.io.mcap.recover`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import threading
+import time
+from typing import Any, Mapping
+
+import numpy as np
+from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
+from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
+from mcap.writer import CompressionType, Writer
+from mcap_protobuf.schema import build_file_descriptor_set
+
+from edge import __version__
+from edge.profiles import Profile, profile_to_dict
+
+from .mcap_format import (
+    JSON_SCHEMAS,
+    MCAP_PROFILE,
+    PROFILE_ATTACHMENT,
+    PROFILE_METADATA,
+    SENSOR_METADATA,
+    camera_calibration,
+    image_to_raw,
+    profile_json,
+    topics,
+)
+
+__all__ = ["Recorder", "COMPRESSION"]
+
+COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+
+
+class Recorder:
+    """Writes one recording; see the module docstring. Not reusable after `finish`.
+
+    Parameters: ``path`` (created / truncated), ``profile`` (recorded as metadata + attachment;
+    gives the device name, chunk size and compression), ``sensor_metadata`` (str -> str, e.g.
+    serial, firmware, backend), ``chunk_size`` / ``compression`` override the profile.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], profile: Profile, *,
+                 sensor_metadata: Mapping[str, Any] | None = None,
+                 chunk_size: int | None = None, compression: str | None = None):
+        compression = compression or profile.recording.compression
+        if compression not in COMPRESSION:
+            raise ValueError(f"expected compression in {sorted(COMPRESSION)}, got {compression!r}")
+        self.path = os.fspath(path)
+        self.profile = profile
+        self.topics = topics(profile.zenoh.device)
+        self.messages_written = 0
+        self.bytes_in = 0
+        self._lock = threading.Lock()
+        self._finished = False
+        self._file = open(self.path, "wb")
+        try:
+            self._writer = Writer(self._file, chunk_size=chunk_size or profile.recording.chunk_size,
+                                  compression=COMPRESSION[compression], enable_crcs=True,
+                                  enable_data_crcs=True)
+            self._writer.start(profile=MCAP_PROFILE, library=f"edge {__version__}")
+            self._channels: dict[str, int] = {}
+            self._sequence: dict[str, int] = {}
+            self._register()
+            text, digest = profile_json(profile_to_dict(profile))
+            now = time.time_ns()
+            self._writer.add_metadata(PROFILE_METADATA, {"name": profile.name, "json": text, "sha256": digest})
+            self._writer.add_attachment(create_time=now, log_time=now, name=PROFILE_ATTACHMENT,
+                                        media_type="application/json", data=text.encode())
+            if sensor_metadata:
+                self._writer.add_metadata(SENSOR_METADATA, {str(k): str(v) for k, v in sensor_metadata.items()})
+            calib = camera_calibration(profile.geometry, profile.camera.width, profile.camera.height,
+                                       timestamp_ns=now)
+            self._add("calibration", calib.SerializeToString(), now, 0)
+            self._file.flush()
+        except BaseException:
+            self._file.close()
+            raise
+
+    # -- setup -------------------------------------------------------------------------------
+
+    def _register(self) -> None:
+        proto = {}
+        for cls in (RawImage, CameraCalibration):
+            proto[cls.DESCRIPTOR.full_name] = self._writer.register_schema(
+                name=cls.DESCRIPTOR.full_name, encoding="protobuf",
+                data=build_file_descriptor_set(cls).SerializeToString())
+        js = {name: self._writer.register_schema(name=name, encoding="jsonschema",
+                                                 data=json.dumps(schema).encode())
+              for name, schema in JSON_SCHEMAS.items()}
+        layout = {
+            "raw": ("protobuf", proto["foxglove.RawImage"]),
+            "raw_info": ("json", js["edge.FrameInfo"]),
+            "depth": ("protobuf", proto["foxglove.RawImage"]),
+            "confidence": ("protobuf", proto["foxglove.RawImage"]),
+            "output_info": ("json", js["edge.OutputInfo"]),
+            "stack": ("json", js["edge.StackInfo"]),
+            "calibration": ("protobuf", proto["foxglove.CameraCalibration"]),
+        }
+        for leaf, (encoding, schema_id) in layout.items():
+            self._channels[leaf] = self._writer.register_channel(
+                topic=self.topics[leaf], message_encoding=encoding, schema_id=schema_id)
+
+    def _add(self, leaf: str, data: bytes, log_time: int, sequence: int | None = None) -> None:
+        if sequence is None:
+            sequence = self._sequence.get(leaf, 0)
+            self._sequence[leaf] = sequence + 1
+        self._writer.add_message(channel_id=self._channels[leaf], log_time=int(log_time), data=data,
+                                 publish_time=int(log_time), sequence=int(sequence) & 0xFFFFFFFF)
+        self.messages_written += 1
+        self.bytes_in += len(data)
+
+    def _check_open(self) -> None:
+        if self._finished:
+            raise ValueError(f"recorder for {self.path} is finished; expected writes before finish()")
+
+    # -- writes ------------------------------------------------------------------------------
+
+    def write_raw(self, image: np.ndarray, *, sequence: int, timestamp_ns: int, stack: int,
+                  projector_frame: int, exposure_us: float = 0.0, role: str = "pattern",
+                  **extra: Any) -> None:
+        """Record one camera frame: (H, W) uint8 (mono8) or uint16 (mono16) plus its metadata.
+
+        ``extra`` keys (JSON-able) go into the ``raw_info`` message next to the standard ones.
+        """
+        msg = image_to_raw(image, timestamp_ns=timestamp_ns, frame_id="camera")
+        info = {"sequence": int(sequence), "timestamp_ns": int(timestamp_ns), "stack": int(stack),
+                "projector_frame": int(projector_frame), "exposure_us": float(exposure_us),
+                "role": str(role), **extra}
+        info_bytes = json.dumps(info).encode()
+        raw_bytes = msg.SerializeToString()
+        with self._lock:
+            self._check_open()
+            self._add("raw_info", info_bytes, timestamp_ns, sequence)
+            self._add("raw", raw_bytes, timestamp_ns, sequence)
+            self._file.flush()
+
+    def write_frame(self, frame: Any, **extra: Any) -> None:
+        """`write_raw` from a frame object with attributes image, sequence, timestamp_ns, stack,
+        projector_frame and (optional) exposure_us, role, metadata (dict merged into extra)."""
+        meta = dict(getattr(frame, "metadata", None) or {})
+        meta.update(extra)
+        role = meta.pop("role", getattr(frame, "role", "pattern"))
+        self.write_raw(frame.image, sequence=frame.sequence, timestamp_ns=frame.timestamp_ns,
+                       stack=frame.stack, projector_frame=frame.projector_frame,
+                       exposure_us=getattr(frame, "exposure_us", 0.0), role=role, **meta)
+
+    def write_depth(self, depth_mm: np.ndarray, confidence: np.ndarray, *, timestamp_ns: int,
+                    stack: int, sequence: int, **extra: Any) -> None:
+        """Record one output: depth (H, W) uint16 mm (0 = invalid) and confidence (H, W) uint8."""
+        depth_mm, confidence = np.asarray(depth_mm), np.asarray(confidence)
+        if depth_mm.dtype != np.uint16 or confidence.dtype != np.uint8 or depth_mm.shape != confidence.shape:
+            raise ValueError("expected depth uint16 (H, W) and confidence uint8 of the same shape, got "
+                             f"{depth_mm.dtype} {depth_mm.shape} and {confidence.dtype} {confidence.shape}")
+        d = image_to_raw(depth_mm, timestamp_ns=timestamp_ns, encoding="16UC1").SerializeToString()
+        c = image_to_raw(confidence, timestamp_ns=timestamp_ns, encoding="mono8").SerializeToString()
+        info = json.dumps({"stack": int(stack), "sequence": int(sequence),
+                           "timestamp_ns": int(timestamp_ns), **extra}).encode()
+        with self._lock:
+            self._check_open()
+            self._add("output_info", info, timestamp_ns, sequence)
+            self._add("depth", d, timestamp_ns, sequence)
+            self._add("confidence", c, timestamp_ns, sequence)
+            self._file.flush()
+
+    def write_stack(self, info: Mapping[str, Any], *, timestamp_ns: int) -> None:
+        """Record per-stack metadata (JSON-able dict; by convention it has a ``stack`` key)."""
+        data = json.dumps(dict(info)).encode()
+        with self._lock:
+            self._check_open()
+            self._add("stack", data, timestamp_ns, int(info.get("stack", 0)))
+            self._file.flush()
+
+    def add_metadata(self, name: str, data: Mapping[str, Any]) -> None:
+        """An extra MCAP metadata record (values converted to str)."""
+        with self._lock:
+            self._check_open()
+            self._writer.add_metadata(name, {str(k): str(v) for k, v in data.items()})
+            self._file.flush()
+
+    # -- lifetime ----------------------------------------------------------------------------
+
+    @property
+    def finished(self) -> bool:
+        return self._finished
+
+    def finish(self) -> None:
+        """Write the last chunk, summary, footer and close the file. Idempotent."""
+        with self._lock:
+            if self._finished:
+                return
+            self._finished = True
+            try:
+                self._writer.finish()
+            finally:
+                self._file.close()
+
+    def __enter__(self) -> "Recorder":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.finish()

@@ -1,0 +1,431 @@
+"""The edge zenoh key space: `DepthPublisher` (service side) and `DepthSubscriber` (client side).
+
+Keys (``<prefix>/<device>`` from the profile's ``[zenoh]`` table, e.g. ``sl/sim-dlp``):
+
+``sl/<device>/depth``       payload: H*W uint16 little-endian millimetres, row-major, 0 = invalid
+                            (ROS REP 118 16UC1); encoding ``application/octet-stream;16UC1``.
+``sl/<device>/confidence``  payload: H*W uint8, higher = more confident; ``...;mono8``.
+``sl/<device>/status``      JSON object once per ``status_period_s``: whatever the runtime passes
+                            (fps, latency_ms, stacks_dropped, edc_rounds, decoder, errors, ...)
+                            plus ``device`` and ``time_ns``.
+``sl/<device>/config``      queryable. ``get`` with no payload and no parameters -> the active
+                            profile as JSON (`edge.profiles.profile_to_dict`). ``get`` with a JSON
+                            object payload (a partial profile, e.g. ``{"decoder": {"method":
+                            "hard"}}``) or with parameters (``sl/dev/config?edc.rounds=2``, values
+                            parsed as JSON when they parse) -> validated update: the reply is the new
+                            profile, or ``reply_err`` with ``config update rejected: <reason>``; on
+                            any error the running profile is kept. ``zenoh.*`` and ``name`` cannot
+                            change while running.
+``sl/<device>/alive``       liveliness token, present while the publisher is open.
+
+Header (the zenoh *attachment* of every depth and confidence sample): UTF-8 JSON object
+``{"v": 1, "width": W, "height": H, "encoding": "16UC1" | "mono8", "units": "mm" | "1/255",
+"timestamp_ns": <time of the stack's last camera frame>, "sequence": <depth-map counter>,
+"stack": <stack id>, "published_ns": <wall clock at put>}``. Latency at a subscriber is
+``time.time_ns() - timestamp_ns`` (timestamps are wall-clock ns, same host or synced clocks).
+
+Five-line subscriber (see also `DepthSubscriber`)::
+
+    import json, zenoh, numpy as np
+    conf = zenoh.Config(); conf.insert_json5("connect/endpoints", '["tcp/127.0.0.1:7447"]')
+    s = zenoh.open(conf)
+    def on(sample): h = json.loads(sample.attachment.to_bytes()); d = np.frombuffer(sample.payload.to_bytes(), "<u2").reshape(h["height"], h["width"]); print(h["sequence"], d.max())
+    sub = s.declare_subscriber("sl/sim-dlp/depth", on)
+"""
+
+from __future__ import annotations
+
+import json
+import queue
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, Mapping
+
+import numpy as np
+import zenoh
+
+from edge.profiles import Profile, ProfileError, apply_update, profile_to_dict
+from edge.profiles.settings import ZenohSettings
+
+__all__ = [
+    "HEADER_VERSION",
+    "ConfigRejected",
+    "DepthPublisher",
+    "DepthSubscriber",
+    "DepthSample",
+    "make_config",
+    "open_session",
+    "encode_header",
+    "decode_header",
+    "decode_image",
+    "get_config",
+    "update_config",
+    "is_alive",
+]
+
+HEADER_VERSION = 1
+_DEPTH_ENCODING = zenoh.Encoding.APPLICATION_OCTET_STREAM.with_schema("16UC1")
+_CONF_ENCODING = zenoh.Encoding.APPLICATION_OCTET_STREAM.with_schema("mono8")
+_DTYPES = {"16UC1": np.dtype("<u2"), "mono8": np.dtype(np.uint8)}
+
+
+class ConfigRejected(ValueError):
+    """The service rejected a config update (or a config query failed); the message is its reason."""
+
+
+# -- sessions ------------------------------------------------------------------------------------
+
+
+def make_config(*, mode: str = "peer", listen: Iterable[str] = (), connect: Iterable[str] = (),
+                multicast_scouting: bool = False) -> zenoh.Config:
+    """A zenoh.Config with the mode, endpoints and multicast scouting set (nothing else)."""
+    conf = zenoh.Config()
+    conf.insert_json5("mode", json.dumps(mode))
+    conf.insert_json5("listen/endpoints", json.dumps(list(listen)))
+    conf.insert_json5("connect/endpoints", json.dumps(list(connect)))
+    conf.insert_json5("scouting/multicast/enabled", json.dumps(bool(multicast_scouting)))
+    return conf
+
+
+def open_session(settings: ZenohSettings) -> zenoh.Session:
+    """A zenoh session configured from a profile's ``[zenoh]`` table."""
+    return zenoh.open(make_config(mode=settings.mode, listen=settings.listen, connect=settings.connect,
+                                  multicast_scouting=settings.multicast_scouting))
+
+
+# -- header / payload ----------------------------------------------------------------------------
+
+
+def encode_header(*, width: int, height: int, encoding: str, timestamp_ns: int, sequence: int,
+                  stack: int = -1) -> bytes:
+    """The JSON attachment of a depth / confidence sample (see the module docstring)."""
+    units = "mm" if encoding == "16UC1" else "1/255"
+    return json.dumps({"v": HEADER_VERSION, "width": int(width), "height": int(height),
+                       "encoding": encoding, "units": units, "timestamp_ns": int(timestamp_ns),
+                       "sequence": int(sequence), "stack": int(stack),
+                       "published_ns": time.time_ns()}).encode()
+
+
+def decode_header(attachment: bytes | None) -> dict[str, Any]:
+    """Parse and check a sample header; ValueError with the reason if it is not one."""
+    if not attachment:
+        raise ValueError("expected a JSON header attachment on the sample, got none")
+    try:
+        header = json.loads(attachment)
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"expected a JSON header attachment, got undecodable bytes ({exc})") from None
+    missing = [k for k in ("width", "height", "encoding", "timestamp_ns", "sequence") if k not in header]
+    if missing:
+        raise ValueError(f"expected header keys width, height, encoding, timestamp_ns, sequence; missing {missing}")
+    if header["encoding"] not in _DTYPES:
+        raise ValueError(f"expected header encoding in {sorted(_DTYPES)}, got {header['encoding']!r}")
+    return header
+
+
+def decode_image(payload: bytes, header: Mapping[str, Any]) -> np.ndarray:
+    """(H, W) uint16 depth (mm) or uint8 confidence from a sample payload and its header."""
+    dtype = _DTYPES[header["encoding"]]
+    h, w = int(header["height"]), int(header["width"])
+    if len(payload) != h * w * dtype.itemsize:
+        raise ValueError(f"expected {h * w * dtype.itemsize} payload bytes for {w}x{h} "
+                         f"{header['encoding']}, got {len(payload)}")
+    return np.frombuffer(payload, dtype=dtype).reshape(h, w).astype(dtype.newbyteorder("="))
+
+
+def _parameters_to_update(parameters: Any) -> dict[str, Any]:
+    """``a.b=1;c.d=hard`` -> {"a": {"b": 1}, "c": {"d": "hard"}} (values JSON-parsed when possible)."""
+    update: dict[str, Any] = {}
+    for key, raw in dict(parameters).items():
+        try:
+            value = json.loads(raw)
+        except json.JSONDecodeError:
+            value = raw
+        node = update
+        parts = key.split(".")
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise ValueError(f"expected {part!r} to be a table in parameter {key!r}")
+        node[parts[-1]] = value
+    return update
+
+
+# -- publisher -----------------------------------------------------------------------------------
+
+
+class DepthPublisher:
+    """Service side of the key space: publishers, config queryable and liveliness token.
+
+    ``on_update(partial: dict) -> Profile`` applies a validated config update in the runtime
+    (raise ValueError with a reason to reject it); by default `apply_update` is used and the new
+    profile only stored here. It runs on a zenoh thread, serialised by a lock. ``session``: an
+    existing session to use (not closed by `close`); default: one opened from ``profile.zenoh``.
+    """
+
+    def __init__(self, profile: Profile, *, on_update: Callable[[dict[str, Any]], Profile] | None = None,
+                 session: zenoh.Session | None = None):
+        self._profile = profile
+        self._on_update = on_update
+        self._lock = threading.Lock()
+        self._closed = False
+        z = profile.zenoh
+        self.keys = {leaf: z.key(leaf) for leaf in ("depth", "confidence", "status", "config", "alive")}
+        self._own_session = session is None
+        self.session = session if session is not None else open_session(z)
+        try:
+            # Not express: with express=True and the default DROP congestion control, zenoh 1.10
+            # dropped back-to-back samples on loopback in our tests; batching keeps them.
+            self._depth = self.session.declare_publisher(self.keys["depth"], encoding=_DEPTH_ENCODING)
+            self._confidence = self.session.declare_publisher(self.keys["confidence"], encoding=_CONF_ENCODING)
+            self._status = self.session.declare_publisher(self.keys["status"],
+                                                          encoding=zenoh.Encoding.APPLICATION_JSON)
+            self._queryable = self.session.declare_queryable(self.keys["config"], self._on_query)
+            self._token = self.session.liveliness().declare_token(self.keys["alive"])
+        except BaseException:
+            if self._own_session:
+                self.session.close()
+            raise
+
+    @property
+    def profile(self) -> Profile:
+        """The active profile (replaced by accepted config updates)."""
+        return self._profile
+
+    def publish_depth(self, depth_mm: np.ndarray, confidence: np.ndarray | None, *, timestamp_ns: int,
+                      sequence: int, stack: int = -1) -> None:
+        """Publish one depth map (H, W) uint16 mm and, if given, its (H, W) uint8 confidence."""
+        depth_mm = np.asarray(depth_mm)
+        if depth_mm.ndim != 2 or depth_mm.dtype != np.uint16:
+            raise ValueError(f"expected depth as (H, W) uint16 mm, got {depth_mm.dtype} {depth_mm.shape}")
+        h, w = depth_mm.shape
+        head = encode_header(width=w, height=h, encoding="16UC1", timestamp_ns=timestamp_ns,
+                             sequence=sequence, stack=stack)
+        self._depth.put(np.ascontiguousarray(depth_mm, dtype="<u2").tobytes(), attachment=head)
+        if confidence is not None:
+            confidence = np.asarray(confidence)
+            if confidence.shape != depth_mm.shape or confidence.dtype != np.uint8:
+                raise ValueError(f"expected confidence as {depth_mm.shape} uint8, got {confidence.dtype} {confidence.shape}")
+            head = encode_header(width=w, height=h, encoding="mono8", timestamp_ns=timestamp_ns,
+                                 sequence=sequence, stack=stack)
+            self._confidence.put(np.ascontiguousarray(confidence).tobytes(), attachment=head)
+
+    def publish_status(self, status: Mapping[str, Any]) -> None:
+        """Publish a JSON status object (``device`` and ``time_ns`` are added)."""
+        body = {**dict(status), "device": self._profile.zenoh.device, "time_ns": time.time_ns()}
+        self._status.put(json.dumps(body, default=str).encode())
+
+    # -- config queryable ------------------------------------------------------------------------
+
+    def _on_query(self, query: zenoh.Query) -> None:
+        try:
+            payload = query.payload.to_bytes() if query.payload is not None else b""
+            params = dict(query.parameters) if query.parameters is not None else {}
+            if not payload and not params:
+                query.reply(self.keys["config"], json.dumps(profile_to_dict(self._profile)).encode(),
+                            encoding=zenoh.Encoding.APPLICATION_JSON)
+                return
+            new = self._update(payload, params)
+            query.reply(self.keys["config"], json.dumps(profile_to_dict(new)).encode(),
+                        encoding=zenoh.Encoding.APPLICATION_JSON)
+        except Exception as exc:  # every failure goes back to the caller, never kills the service
+            reason = str(exc).replace("\n", " ")
+            query.reply_err(f"config update rejected: {reason}".encode(), encoding=zenoh.Encoding.TEXT_PLAIN)
+
+    def _update(self, payload: bytes, params: Mapping[str, str]) -> Profile:
+        if payload and params:
+            raise ValueError("expected a JSON payload or parameters, got both")
+        if payload:
+            try:
+                update = json.loads(payload)
+            except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+                raise ValueError(f"payload is not valid JSON ({exc})") from None
+        else:
+            update = _parameters_to_update(params)
+        if not isinstance(update, dict):
+            raise ValueError(f"expected a JSON object of settings, got {type(update).__name__}")
+        frozen = [k for k in ("zenoh", "name") if k in update]
+        if frozen:
+            raise ValueError(f"{frozen[0]} cannot change while running (restart with another profile)")
+        with self._lock:
+            if self._on_update is not None:
+                new = self._on_update(update)
+                if not isinstance(new, Profile):
+                    raise ValueError(f"on_update returned {type(new).__name__}, expected a Profile")
+            else:
+                new = apply_update(self._profile, update, source=f"{self.keys['config']} update")
+            self._profile = new
+        return new
+
+    # -- lifetime --------------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Undeclare the token, queryable and publishers, then close the session (if owned)."""
+        if self._closed:
+            return
+        self._closed = True
+        for entity in (self._token, self._queryable, self._status, self._confidence, self._depth):
+            try:
+                entity.undeclare()
+            except Exception:
+                pass
+        if self._own_session:
+            self.session.close()
+
+    def __enter__(self) -> "DepthPublisher":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+# -- client side ---------------------------------------------------------------------------------
+
+
+@dataclass
+class DepthSample:
+    depth_mm: np.ndarray                 # (H, W) uint16, 0 = invalid
+    confidence: np.ndarray | None        # (H, W) uint8 or None if it did not arrive in time
+    header: dict[str, Any]               # the depth sample's header
+    received_ns: int                     # wall clock when the depth sample arrived
+
+    @property
+    def latency_ms(self) -> float:
+        """Arrival time minus the stack's timestamp, in ms."""
+        return (self.received_ns - int(self.header["timestamp_ns"])) / 1e6
+
+
+def _reply_payload(replies: Iterable[Any], what: str) -> bytes:
+    for reply in replies:
+        if reply.ok is not None:
+            return reply.ok.payload.to_bytes()
+        raise ConfigRejected(reply.err.payload.to_bytes().decode(errors="replace"))
+    raise ConfigRejected(f"no reply from {what} (is the service running and reachable?)")
+
+
+def get_config(session: zenoh.Session, device: str, *, prefix: str = "sl", timeout: float = 2.0) -> dict[str, Any]:
+    """The active profile of ``device`` as a dict (ConfigRejected if there is no answer)."""
+    key = f"{prefix}/{device}/config"
+    return json.loads(_reply_payload(session.get(key, timeout=timeout), key))
+
+
+def update_config(session: zenoh.Session, device: str, update: Mapping[str, Any] | bytes, *,
+                  prefix: str = "sl", timeout: float = 2.0) -> dict[str, Any]:
+    """Send a partial profile update; returns the new profile, or raises ConfigRejected(reason)."""
+    key = f"{prefix}/{device}/config"
+    payload = update if isinstance(update, bytes) else json.dumps(dict(update)).encode()
+    return json.loads(_reply_payload(session.get(key, payload=payload, timeout=timeout), key))
+
+
+def is_alive(session: zenoh.Session, device: str, *, prefix: str = "sl", timeout: float = 2.0) -> bool:
+    """True if ``<prefix>/<device>/alive`` has a liveliness token."""
+    key = f"{prefix}/{device}/alive"
+    return any(r.ok is not None for r in session.liveliness().get(key, timeout=timeout))
+
+
+class DepthSubscriber:
+    """Client side: receive decoded depth (+ confidence) and status of one device.
+
+    ``DepthSubscriber("sim-dlp", connect=["tcp/127.0.0.1:7447"])`` opens a peer session with
+    multicast scouting off (or uses ``session``). `receive` returns `DepthSample` objects in
+    arrival order; at most ``max_queue`` are buffered (older ones are dropped and counted in
+    ``dropped``). ``status`` holds the latest status dict.
+    """
+
+    def __init__(self, device: str, *, connect: Iterable[str] = ("tcp/127.0.0.1:7447",), prefix: str = "sl",
+                 session: zenoh.Session | None = None, max_queue: int = 8):
+        self.device, self.prefix = device, prefix
+        self._own_session = session is None
+        self.session = session if session is not None else zenoh.open(make_config(connect=connect))
+        self._samples: queue.Queue[tuple[np.ndarray, dict[str, Any], int]] = queue.Queue(maxsize=max_queue)
+        self._confidence: dict[int, np.ndarray] = {}
+        self._cond = threading.Condition()
+        self.dropped = 0
+        self.errors: list[str] = []
+        self.status: dict[str, Any] | None = None
+        self._closed = False
+        base = f"{prefix}/{device}"
+        self._subs = [
+            self.session.declare_subscriber(f"{base}/depth", self._on_depth),
+            self.session.declare_subscriber(f"{base}/confidence", self._on_confidence),
+            self.session.declare_subscriber(f"{base}/status", self._on_status),
+        ]
+
+    def _on_depth(self, sample: zenoh.Sample) -> None:
+        received = time.time_ns()
+        try:
+            header = decode_header(sample.attachment.to_bytes() if sample.attachment is not None else None)
+            depth = decode_image(sample.payload.to_bytes(), header)
+        except ValueError as exc:
+            self.errors.append(f"depth: {exc}")
+            return
+        while True:
+            try:
+                self._samples.put_nowait((depth, header, received))
+                return
+            except queue.Full:
+                try:
+                    self._samples.get_nowait()
+                    self.dropped += 1
+                except queue.Empty:
+                    pass
+
+    def _on_confidence(self, sample: zenoh.Sample) -> None:
+        try:
+            header = decode_header(sample.attachment.to_bytes() if sample.attachment is not None else None)
+            image = decode_image(sample.payload.to_bytes(), header)
+        except ValueError as exc:
+            self.errors.append(f"confidence: {exc}")
+            return
+        with self._cond:
+            self._confidence[int(header["sequence"])] = image
+            while len(self._confidence) > 32:
+                self._confidence.pop(next(iter(self._confidence)))
+            self._cond.notify_all()
+
+    def _on_status(self, sample: zenoh.Sample) -> None:
+        try:
+            self.status = json.loads(sample.payload.to_bytes())
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            self.errors.append(f"status: {exc}")
+
+    def receive(self, timeout: float = 1.0, *, confidence_wait: float = 0.2) -> DepthSample | None:
+        """The next depth sample (None after ``timeout`` s); waits up to ``confidence_wait`` s for
+        the confidence map with the same sequence."""
+        try:
+            depth, header, received = self._samples.get(timeout=timeout)
+        except queue.Empty:
+            return None
+        seq = int(header["sequence"])
+        with self._cond:
+            self._cond.wait_for(lambda: seq in self._confidence, timeout=confidence_wait)
+            conf = self._confidence.pop(seq, None)
+        return DepthSample(depth, conf, header, received)
+
+    def get_config(self, timeout: float = 2.0) -> dict[str, Any]:
+        return get_config(self.session, self.device, prefix=self.prefix, timeout=timeout)
+
+    def update_config(self, update: Mapping[str, Any] | bytes, timeout: float = 2.0) -> dict[str, Any]:
+        return update_config(self.session, self.device, update, prefix=self.prefix, timeout=timeout)
+
+    def is_alive(self, timeout: float = 2.0) -> bool:
+        return is_alive(self.session, self.device, prefix=self.prefix, timeout=timeout)
+
+    def close(self) -> None:
+        """Undeclare the subscribers, then close the session (if owned)."""
+        if self._closed:
+            return
+        self._closed = True
+        for sub in self._subs:
+            try:
+                sub.undeclare()
+            except Exception:
+                pass
+        if self._own_session:
+            self.session.close()
+
+    def __enter__(self) -> "DepthSubscriber":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()

@@ -1,0 +1,389 @@
+"""Typed, validated firmware-profile settings.
+
+A profile is a frozen `Profile` made of one frozen dataclass per TOML table. Every field carries
+its constraints in ``dataclasses.field(metadata=...)``; `build_profile` walks the nested dict, checks
+unknown keys, types and ranges, then runs the cross-field checks in `_check_profile`, and raises
+ONE `ProfileError` naming the source, the dotted key and the reason.
+
+TOML layout (every table and key; ``=`` gives the default, no default = required)::
+
+    name = "sim-dlp"                      # profile name: [a-z0-9][a-z0-9_-]*
+    description = ""
+
+    [sensor]
+    backend = "sim"                       # sim | replay | oak | event
+    replay_path = ""                      # MCAP file for the replay backend ("" = given on the CLI)
+    replay_speed = "recorded"             # recorded | max
+
+    [projector]
+    kind = "columns"                      # columns (DLP code patterns) | dots | line
+    width = 1024                          # projector columns
+    height = 768
+    rate_hz = 120.0                       # frames per second
+    stripe = 1                            # projector columns per codeword (architecture.md)
+
+    [camera]
+    width = 640
+    height = 480
+    rate_hz = 120.0
+    bits = 8                              # 8 | 10 | 12 | 16 (uint8 for 8, uint16 otherwise)
+    exposure_us = 8000.0                  # <= 1e6 / rate_hz
+    sigma_r = 0.004                       # read noise, std dev on the [0, 1] intensity scale
+    sigma_s = 0.015                       # shot-noise factor: variance = sigma_r**2 + sigma_s**2 * I
+
+    [code]
+    name = "ecc-22-10"                    # edge.codes.get_code name; "" only for dots / line projectors
+    source = ""                           # light-source code bit string ("" = none), e.g. "1101"
+
+    [decoder]
+    method = "soft"                       # soft | hard | list | median | block-match | curtain
+    min_contrast = 0.02                   # white - black below this (0..1 scale) -> invalid pixel
+    min_confidence = 0.0                  # confidence below this (0..1) -> invalid pixel
+    min_disparity = -176                  # disparity band, pixels (architecture.md convention)
+    max_disparity = -64
+
+    [edc]
+    rounds = 0                            # adaptive re-projection rounds (0 = EDC loop off)
+
+    [geometry]                            # rectified, Middlebury convention (architecture.md)
+    baseline_m = 0.08
+    focal_px = 560.0
+    cx_camera = 320.0
+    cx_projector = 512.0
+    cy = 240.0
+
+    [zenoh]
+    prefix = "sl"                         # keys are <prefix>/<device>/depth etc.
+    device = "sim-dlp"                    # default: the profile name
+    mode = "peer"                         # peer | client | router
+    listen = ["tcp/127.0.0.1:7447"]
+    connect = []
+    multicast_scouting = false
+    status_period_s = 1.0
+
+    [recording]
+    chunk_size = 4194304                  # bytes of uncompressed messages per MCAP chunk
+    compression = "zstd"                  # zstd | lz4 | none
+    raw = true                            # record raw camera frames
+    outputs = true                        # record depth and confidence
+
+    [sim]
+    scene = "planes"                      # edge.sim.make_scene name
+    seed = 0
+    ambient = 0.2                         # ambient light level (0..1 scale)
+    projector = 0.6                       # projector light level (0..1 scale)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+import typing
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+__all__ = [
+    "ProfileError",
+    "Profile",
+    "SensorSettings",
+    "ProjectorSettings",
+    "CameraSettings",
+    "CodeSettings",
+    "DecoderSettings",
+    "EdcSettings",
+    "GeometrySettings",
+    "ZenohSettings",
+    "RecordingSettings",
+    "SimSettings",
+    "build_profile",
+    "profile_to_dict",
+    "DECODER_METHODS",
+    "SENSOR_BACKENDS",
+]
+
+SENSOR_BACKENDS = ("sim", "replay", "oak", "event")
+PROJECTOR_KINDS = ("columns", "dots", "line")
+DECODER_METHODS = ("soft", "hard", "list", "median", "block-match", "curtain")
+ZENOH_MODES = ("peer", "client", "router")
+COMPRESSIONS = ("zstd", "lz4", "none")
+CAMERA_BITS = (8, 10, 12, 16)
+
+_NAME = r"[a-z0-9][a-z0-9_-]*"
+_KEY_CHUNK = r"[A-Za-z0-9_-]+"
+_ENDPOINT = r"(tcp|udp|tls|quic|ws|unixsock-stream)/\S+"
+
+
+class ProfileError(ValueError):
+    """A profile failed validation: ``<source>: <dotted.key>: <reason>`` on one line."""
+
+    def __init__(self, source: str, key: str, reason: str):
+        self.source = source
+        self.key = key
+        self.reason = reason
+        where = f"{source}: {key}: " if key else f"{source}: "
+        super().__init__(where + reason)
+
+
+def _f(default: Any = dataclasses.MISSING, *, lo: float | None = None, hi: float | None = None,
+       lo_open: bool = False, choices: tuple | None = None, pattern: str | None = None) -> Any:
+    """A dataclass field with validation metadata (range, allowed values, regex)."""
+    meta = {"lo": lo, "hi": hi, "lo_open": lo_open, "choices": choices, "pattern": pattern}
+    if isinstance(default, (list, tuple)):
+        value = tuple(default)
+        return field(default_factory=lambda: value, metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class SensorSettings:
+    backend: str = _f("sim", choices=SENSOR_BACKENDS)
+    replay_path: str = _f("")
+    replay_speed: str = _f("recorded", choices=("recorded", "max"))
+
+
+@dataclass(frozen=True)
+class ProjectorSettings:
+    width: int = _f(lo=1, hi=65536)
+    height: int = _f(lo=1, hi=65536)
+    rate_hz: float = _f(lo=0.0, hi=1e6, lo_open=True)
+    kind: str = _f("columns", choices=PROJECTOR_KINDS)
+    stripe: int = _f(1, lo=1, hi=4096)
+
+
+@dataclass(frozen=True)
+class CameraSettings:
+    width: int = _f(lo=1, hi=65536)
+    height: int = _f(lo=1, hi=65536)
+    rate_hz: float = _f(lo=0.0, hi=1e6, lo_open=True)
+    exposure_us: float = _f(lo=0.0, lo_open=True)
+    bits: int = _f(8, choices=CAMERA_BITS)
+    sigma_r: float = _f(0.0, lo=0.0, hi=1.0)
+    sigma_s: float = _f(0.0, lo=0.0, hi=1.0)
+
+
+@dataclass(frozen=True)
+class CodeSettings:
+    name: str = _f()
+    source: str = _f("", pattern=r"[01]{0,64}")
+
+
+@dataclass(frozen=True)
+class DecoderSettings:
+    min_disparity: int = _f(lo=-65536, hi=65536)
+    max_disparity: int = _f(lo=-65536, hi=65536)
+    method: str = _f("soft", choices=DECODER_METHODS)
+    min_contrast: float = _f(0.0, lo=0.0, hi=1.0)
+    min_confidence: float = _f(0.0, lo=0.0, hi=1.0)
+
+
+@dataclass(frozen=True)
+class EdcSettings:
+    rounds: int = _f(0, lo=0, hi=16)
+
+
+@dataclass(frozen=True)
+class GeometrySettings:
+    baseline_m: float = _f(lo=0.0, hi=100.0, lo_open=True)
+    focal_px: float = _f(lo=0.0, hi=1e6, lo_open=True)
+    cx_camera: float = _f(lo=-1e6, hi=1e6)
+    cx_projector: float = _f(lo=-1e6, hi=1e6)
+    cy: float = _f(lo=-1e6, hi=1e6)
+
+    @property
+    def doffs(self) -> float:
+        """``cx_projector - cx_camera`` in pixels (depth = focal_px * baseline_m / (d + doffs))."""
+        return self.cx_projector - self.cx_camera
+
+
+@dataclass(frozen=True)
+class ZenohSettings:
+    device: str = _f(pattern=_KEY_CHUNK)
+    prefix: str = _f("sl", pattern=_KEY_CHUNK + r"(/" + _KEY_CHUNK + r")*")
+    mode: str = _f("peer", choices=ZENOH_MODES)
+    listen: tuple[str, ...] = _f(("tcp/127.0.0.1:7447",), pattern=_ENDPOINT)
+    connect: tuple[str, ...] = _f((), pattern=_ENDPOINT)
+    multicast_scouting: bool = _f(False)
+    status_period_s: float = _f(1.0, lo=0.0, hi=3600.0, lo_open=True)
+
+    def key(self, leaf: str) -> str:
+        """``<prefix>/<device>/<leaf>``, e.g. ``sl/sim-dlp/depth``."""
+        return f"{self.prefix}/{self.device}/{leaf}"
+
+
+@dataclass(frozen=True)
+class RecordingSettings:
+    chunk_size: int = _f(4 * 1024 * 1024, lo=4096, hi=1 << 30)
+    compression: str = _f("zstd", choices=COMPRESSIONS)
+    raw: bool = _f(True)
+    outputs: bool = _f(True)
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    scene: str = _f("planes", pattern=_NAME)
+    seed: int = _f(0, lo=0, hi=2**63 - 1)
+    ambient: float = _f(0.2, lo=0.0, hi=100.0)
+    projector: float = _f(0.6, lo=0.0, hi=100.0)
+
+
+@dataclass(frozen=True)
+class Profile:
+    """One device's firmware profile (see the module docstring for the TOML layout).
+
+    ``source`` is where it came from (a file path or ``"<dict>"``); it is not part of the
+    settings and is not written by `profile_to_dict`.
+    """
+
+    name: str = _f(pattern=_NAME)
+    projector: ProjectorSettings = _f()
+    camera: CameraSettings = _f()
+    code: CodeSettings = _f()
+    decoder: DecoderSettings = _f()
+    geometry: GeometrySettings = _f()
+    zenoh: ZenohSettings = _f()
+    description: str = _f("")
+    sensor: SensorSettings = _f(SensorSettings())
+    edc: EdcSettings = _f(EdcSettings())
+    recording: RecordingSettings = _f(RecordingSettings())
+    sim: SimSettings = _f(SimSettings())
+    source: str = field(default="<dict>", compare=False, metadata={"internal": True})
+
+
+# ---------------------------------------------------------------------------------------------
+# validation engine
+
+
+def _type_name(value: Any) -> str:
+    return {bool: "boolean", int: "integer", float: "number", str: "string",
+            list: "array", tuple: "array", dict: "table"}.get(type(value), type(value).__name__)
+
+
+def _describe(tp: Any) -> str:
+    return {int: "an integer", float: "a number", str: "a string", bool: "true or false"}.get(
+        tp, "an array of strings")
+
+
+def _check_scalar(tp: Any, value: Any, meta: Mapping[str, Any], source: str, key: str) -> Any:
+    if tp is bool:
+        ok = isinstance(value, bool)
+    elif tp is int:
+        ok = isinstance(value, int) and not isinstance(value, bool)
+    elif tp is float:
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        if ok:
+            value = float(value)
+            if not math.isfinite(value):
+                raise ProfileError(source, key, f"expected a finite number, got {value!r}")
+    else:
+        ok = isinstance(value, str)
+    if not ok:
+        raise ProfileError(source, key, f"expected {_describe(tp)}, got {_type_name(value)} {value!r}")
+    choices = meta.get("choices")
+    if choices is not None and value not in choices:
+        raise ProfileError(source, key, f"expected one of {', '.join(map(repr, choices))}, got {value!r}")
+    pattern = meta.get("pattern")
+    if pattern is not None and not re.fullmatch(pattern, value):
+        raise ProfileError(source, key, f"expected a string matching {pattern!r}, got {value!r}")
+    lo, hi = meta.get("lo"), meta.get("hi")
+    if lo is not None and (value <= lo if meta.get("lo_open") else value < lo):
+        op = ">" if meta.get("lo_open") else ">="
+        raise ProfileError(source, key, f"expected a value {op} {lo:g}, got {value!r}")
+    if hi is not None and value > hi:
+        raise ProfileError(source, key, f"expected a value <= {hi:g}, got {value!r}")
+    return value
+
+
+def _build(cls: type, data: Any, source: str, prefix: str) -> Any:
+    if not isinstance(data, Mapping):
+        raise ProfileError(source, prefix or "<root>", f"expected a table, got {_type_name(data)} {data!r}")
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls) if not f.metadata.get("internal")}
+    unknown = [k for k in data if k not in fields]
+    if unknown:
+        key = f"{prefix}.{unknown[0]}" if prefix else str(unknown[0])
+        raise ProfileError(source, key, f"unknown key; valid keys here: {', '.join(fields)}")
+    kwargs: dict[str, Any] = {}
+    for name, f in fields.items():
+        key = f"{prefix}.{name}" if prefix else name
+        tp = hints[name]
+        if name not in data:
+            if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+                what = "table" if dataclasses.is_dataclass(tp) else "key"
+                raise ProfileError(source, key, f"missing required {what}")
+            continue
+        value = data[name]
+        if dataclasses.is_dataclass(tp):
+            kwargs[name] = _build(tp, value, source, key)
+        elif typing.get_origin(tp) is tuple:
+            if not isinstance(value, (list, tuple)):
+                raise ProfileError(source, key, f"expected an array of strings, got {_type_name(value)} {value!r}")
+            kwargs[name] = tuple(_check_scalar(str, v, f.metadata, source, f"{key}[{i}]")
+                                 for i, v in enumerate(value))
+        else:
+            kwargs[name] = _check_scalar(tp, value, f.metadata, source, key)
+    return cls(**kwargs)
+
+
+def _check_profile(p: Profile, source: str) -> None:
+    """Cross-field checks; each failure names the key it blames."""
+    from edge.codes import get_code
+
+    if p.code.name:
+        try:
+            code = get_code(p.code.name)
+        except ValueError as exc:
+            raise ProfileError(source, "code.name", str(exc)) from None
+        if p.projector.kind == "columns":
+            rows = code.codebook.shape[0]
+            if p.projector.width > rows * p.projector.stripe:
+                raise ProfileError(
+                    source, "projector.width",
+                    f"expected <= {rows * p.projector.stripe} columns ({rows} codewords of "
+                    f"{p.code.name} x stripe {p.projector.stripe}), got {p.projector.width}")
+    elif p.projector.kind == "columns":
+        raise ProfileError(source, "code.name", "expected a code name for a 'columns' projector, got ''")
+    if p.code.source and "1" not in p.code.source:
+        raise ProfileError(source, "code.source", f"expected a bit string with at least one '1', got {p.code.source!r}")
+    if p.decoder.min_disparity > p.decoder.max_disparity:
+        raise ProfileError(source, "decoder.max_disparity",
+                           f"expected >= decoder.min_disparity ({p.decoder.min_disparity}), got {p.decoder.max_disparity}")
+    doffs = p.geometry.doffs
+    if p.decoder.min_disparity + doffs <= 0:
+        raise ProfileError(
+            source, "decoder.min_disparity",
+            f"expected min_disparity + doffs > 0 so depth is finite over the band "
+            f"(doffs = cx_projector - cx_camera = {doffs:g}), got {p.decoder.min_disparity}")
+    period_us = 1e6 / p.camera.rate_hz
+    if p.camera.exposure_us > period_us:
+        raise ProfileError(source, "camera.exposure_us",
+                           f"expected <= the frame period 1e6 / rate_hz = {period_us:g}, got {p.camera.exposure_us:g}")
+    if p.zenoh.mode == "client" and not p.zenoh.connect:
+        raise ProfileError(source, "zenoh.connect", "expected at least one endpoint in client mode, got []")
+
+
+def build_profile(data: Mapping[str, Any], source: str = "<dict>") -> Profile:
+    """Validate a nested dict (a parsed TOML file or JSON update) into a `Profile`.
+
+    ``zenoh.device`` defaults to ``name``. Raises `ProfileError` on the first problem.
+    """
+    if isinstance(data, Mapping) and isinstance(data.get("zenoh"), Mapping) and "device" not in data["zenoh"]:
+        if isinstance(data.get("name"), str):
+            data = {**data, "zenoh": {**data["zenoh"], "device": data["name"]}}
+    profile = _build(Profile, data, source, "")
+    _check_profile(profile, source)
+    return dataclasses.replace(profile, source=source)
+
+
+def profile_to_dict(profile: Profile) -> dict[str, Any]:
+    """Nested, JSON-able dict of every setting (tuples -> lists); `build_profile` inverts it."""
+
+    def convert(obj: Any) -> Any:
+        if dataclasses.is_dataclass(obj):
+            return {f.name: convert(getattr(obj, f.name)) for f in dataclasses.fields(obj)
+                    if not f.metadata.get("internal")}
+        if isinstance(obj, tuple):
+            return [convert(v) for v in obj]
+        return obj
+
+    return convert(profile)

@@ -1,0 +1,128 @@
+"""Frame assembly: group camera frames into complete stacks, drop and count incomplete ones.
+
+A stack is accepted only when every projector frame of the schedule arrived, in schedule order,
+with consecutive sequence numbers and the same stack id.  Anything else (a lost frame, a frame
+arriving late, a frame of another stack mixed in) makes the whole stack *incomplete*: it is
+dropped, counted, and never reaches the decoder.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..sensors.base import Frame
+
+
+@dataclass(frozen=True, eq=False)
+class Stack:
+    """A complete stack of frames for one depth map.
+
+    frames: the frames in schedule order (len == len(schedule)).
+    stack: stack id; first_sequence: sequence number of frame 0.
+    received_ns: host wall-clock time (time.time_ns) when the last frame arrived.
+    """
+
+    stack: int
+    frames: tuple[Frame, ...]
+    received_ns: int
+
+    @property
+    def first_sequence(self) -> int:
+        return self.frames[0].sequence
+
+    @property
+    def timestamp_ns(self) -> int:
+        """Sensor timestamp of the last frame of the stack (ns)."""
+        return self.frames[-1].timestamp_ns
+
+    def images(self) -> np.ndarray:
+        """(m, H, W) array of the frames' images, schedule order."""
+        return np.stack([f.image for f in self.frames])
+
+
+@dataclass
+class AssemblyCounters:
+    """Counters of `StackAssembler` (all monotonically increasing)."""
+
+    frames_in: int = 0
+    stacks_complete: int = 0
+    stacks_incomplete: int = 0
+    sequence_gaps: int = 0
+    out_of_order: int = 0
+    unexpected_frames: int = 0
+
+    def as_dict(self) -> dict[str, int]:
+        return dict(self.__dict__)
+
+
+@dataclass
+class StackAssembler:
+    """Feed frames one by one with `push`; it returns a `Stack` when one completes.
+
+    schedule: (m,) projector frame ids of a stack in capture order (`stack_schedule`).
+    """
+
+    schedule: np.ndarray
+    counters: AssemblyCounters = field(default_factory=AssemblyCounters)
+
+    def __post_init__(self) -> None:
+        self.schedule = np.asarray(self.schedule, dtype=np.int64).reshape(-1)
+        if self.schedule.size == 0:
+            raise ValueError("stack schedule must hold at least one projector frame id, got none")
+        self._frames: list[Frame] = []
+        self._stack: int | None = None
+        self._broken = False
+        self._last_sequence: int | None = None
+
+    def _drop_current(self) -> None:
+        if self._stack is not None and (self._frames or self._broken):
+            self.counters.stacks_incomplete += 1
+        self._frames = []
+        self._stack = None
+        self._broken = False
+
+    def push(self, frame: Frame, received_ns: int | None = None) -> Stack | None:
+        """Add one frame; returns the completed Stack or None."""
+        c = self.counters
+        c.frames_in += 1
+        last = self._last_sequence
+        if last is not None and frame.sequence <= last:
+            # Late / duplicated frame: it cannot belong to a stack we still accept.
+            c.out_of_order += 1
+            if self._stack == frame.stack:
+                self._broken = True
+            return None
+        gap = last is not None and frame.sequence != last + 1
+        self._last_sequence = frame.sequence
+        if gap:
+            c.sequence_gaps += 1
+
+        if frame.stack != self._stack:
+            self._drop_current()
+            self._stack = frame.stack
+        elif gap:
+            self._broken = True
+
+        if self._broken:
+            return None
+        position = len(self._frames)
+        if position >= self.schedule.size or frame.projector_frame != self.schedule[position]:
+            c.unexpected_frames += 1
+            self._broken = True
+            self._frames = []
+            return None
+        self._frames.append(frame)
+        if len(self._frames) < self.schedule.size:
+            return None
+        stack = Stack(frame.stack, tuple(self._frames), time.time_ns() if received_ns is None else received_ns)
+        self._frames = []
+        self._stack = None
+        c.stacks_complete += 1
+        return stack
+
+    def flush(self) -> None:
+        """End of stream: a partly assembled stack is dropped and counted."""
+        self._drop_current()

@@ -1,0 +1,96 @@
+"""Column -> disparity -> depth: pure functions, so replay reproduces the service bit for bit.
+
+Rectified projector-camera pair, Middlebury convention (docs/architecture.md):
+``d = x_camera - column`` and ``Z = focal_px * baseline_m / (d + doffs)`` with
+``doffs = cx_projector - cx_camera``.  Depth leaves as uint16 millimetres, 0 = invalid
+(ROS REP 118 16UC1).  All arithmetic is float64 numpy with round-half-even, which is
+deterministic across runs and machines.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+
+class DepthGeometry(Protocol):
+    """Anything with these attributes (e.g. `edge.sim.Geometry` or a profile's geometry)."""
+
+    focal_px: float
+    baseline_m: float
+    cx_camera: float
+    cx_projector: float
+
+
+def _check_column(column: np.ndarray) -> np.ndarray:
+    column = np.asarray(column)
+    if column.ndim != 2:
+        raise ValueError(f"column map must be 2-D (H, W), got shape {column.shape}")
+    if not (np.issubdtype(column.dtype, np.integer) or np.issubdtype(column.dtype, np.floating)):
+        raise ValueError(f"column map must be integer or float, got dtype {column.dtype}")
+    return column
+
+
+def projector_column(codeword_index: np.ndarray, stripe: int = 1) -> np.ndarray:
+    """Projector column (float64 pixels) at the centre of the stripe that sends ``codeword_index``.
+
+    codeword_index: (H, W) int, -1 = invalid -> NaN.  stripe: projector columns per codeword.
+    """
+    if stripe < 1:
+        raise ValueError(f"stripe must be >= 1 projector column per codeword, got {stripe}")
+    idx = _check_column(codeword_index)
+    out = idx.astype(np.float64) * stripe + (stripe - 1) / 2.0
+    out[idx < 0] = np.nan
+    return out
+
+
+def column_to_disparity(column: np.ndarray) -> np.ndarray:
+    """(H, W) projector column (pixels; int with -1 invalid, or float with NaN invalid) ->
+    (H, W) float64 disparity ``x - column`` in pixels, NaN where invalid."""
+    col = _check_column(column)
+    x = np.arange(col.shape[1], dtype=np.float64)[None, :]
+    d = x - col.astype(np.float64)
+    if np.issubdtype(col.dtype, np.integer):
+        d[col < 0] = np.nan
+    return d
+
+
+def disparity_to_depth_mm(disparity: np.ndarray, geometry: DepthGeometry) -> np.ndarray:
+    """(H, W) float disparity (pixels, NaN invalid) -> (H, W) uint16 depth in mm, 0 = invalid.
+
+    Invalid: NaN disparity, ``d + doffs <= 0`` (behind the sensor / at infinity), or a depth that
+    rounds to 0 or exceeds 65535 mm.
+    """
+    d = np.asarray(disparity, dtype=np.float64)
+    doffs = float(geometry.cx_projector) - float(geometry.cx_camera)
+    fb_mm = float(geometry.focal_px) * float(geometry.baseline_m) * 1000.0
+    if not fb_mm > 0:
+        raise ValueError(f"focal_px * baseline_m must be positive, got {fb_mm / 1000.0}")
+    denom = d + doffs
+    ok = np.isfinite(denom) & (denom > 0)
+    z = np.zeros(d.shape, dtype=np.float64)
+    np.divide(fb_mm, denom, out=z, where=ok)
+    z = np.rint(z)
+    ok &= (z >= 1) & (z <= 65535)
+    return np.where(ok, z, 0).astype(np.uint16)
+
+
+def column_to_depth_mm(column: np.ndarray, geometry: DepthGeometry, *, stripe: int = 1) -> np.ndarray:
+    """Decoded codeword index map (H, W) int32, -1 invalid -> depth (H, W) uint16 mm, 0 invalid.
+
+    With ``stripe`` > 1 the codeword index is converted to the centre projector column first.
+    """
+    col = _check_column(column)
+    if stripe != 1 or not np.issubdtype(col.dtype, np.integer):
+        col = projector_column(col, stripe) if np.issubdtype(col.dtype, np.integer) else col
+    return disparity_to_depth_mm(column_to_disparity(col), geometry)
+
+
+def confidence_to_u8(confidence: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
+    """(H, W) float confidence in [0, 1] -> uint8 0..255 (higher = more confident), 0 where invalid."""
+    c = np.asarray(confidence, dtype=np.float64)
+    out = np.rint(np.clip(np.nan_to_num(c, nan=0.0), 0.0, 1.0) * 255.0).astype(np.uint8)
+    if valid is not None:
+        out[~np.asarray(valid, dtype=bool)] = 0
+    return out

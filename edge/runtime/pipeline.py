@@ -1,0 +1,175 @@
+"""Stack -> depth: the per-stack processing chain of the service, as one deterministic function.
+
+``DepthPipeline(profile).process(stack)`` runs, in order:
+
+1. matched filter (when ``profile.code.source`` is set): the L slots of every projector frame
+   are de-spread into one image (`edge.source.despread`);
+2. split into the n code frames, the white and the black calibration frame;
+3. decoder (`edge.decode.decode`, the profile's method and disparity band), then the profile's
+   validity thresholds (``decoder.min_contrast`` on (white - black), ``decoder.min_confidence``);
+4. EDC (when ``edc.rounds`` > 0): `edge.decode.check` error map and the adaptive loop
+   (`edge.edc`), which asks ``masked_capture`` for the next masked frames;
+5. column -> disparity -> depth (`edge.runtime.depth.column_to_depth_mm`, profile geometry).
+
+Nothing here depends on time, threads or randomness, so `edge replay` calls the same `process`
+on recorded frames and gets the same depth bit for bit.  Call it from ONE thread (numba parallel
+kernels).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ..sensors.base import BLACK, WHITE, Frame, parse_projector_frame, stack_schedule
+from .assembly import Stack
+from .depth import column_to_depth_mm, confidence_to_u8
+
+#: A callable that captures masked frames for the EDC loop: (stack id, round, projector rows (m, Wp)) -> frames
+MaskedCaptureFn = Callable[[int, int, np.ndarray], list[Frame]]
+
+
+@dataclass(frozen=True, eq=False)
+class DepthResult:
+    """One depth map and what produced it.
+
+    depth_mm: (H, W) uint16 millimetres, 0 = invalid.  confidence: (H, W) uint8, 255 = most
+    confident, 0 where invalid.  column: (H, W) int32 decoded codeword index, -1 invalid.
+    stack / sequence: stack id and sequence number of its first frame; timestamp_ns: sensor
+    time of its last frame; received_ns: host time (time.time_ns) the last frame arrived;
+    decode_s: seconds spent in `process`; edc_rounds: adaptive rounds run; extra_frames: frames
+    captured by those rounds (in capture order, so they can be recorded and replayed).
+    """
+
+    stack: int
+    sequence: int
+    timestamp_ns: int
+    received_ns: int
+    depth_mm: np.ndarray
+    confidence: np.ndarray
+    column: np.ndarray
+    decode_s: float = 0.0
+    edc_rounds: int = 0
+    extra_frames: tuple[Frame, ...] = field(default=())
+
+    @property
+    def valid_fraction(self) -> float:
+        return float(np.count_nonzero(self.depth_mm)) / max(1, self.depth_mm.size)
+
+    def median_depth_mm(self) -> float:
+        d = self.depth_mm[self.depth_mm > 0]
+        return float(np.median(d)) if d.size else float("nan")
+
+
+def stack_layout(profile) -> tuple[int, int]:
+    """(n code frames, source-code length L) of a profile's stacks."""
+    from edge.codes import get_code
+
+    n = get_code(profile.code.name).n if profile.code.name else 1
+    return n, max(1, len(profile.code.source))
+
+
+def profile_schedule(profile) -> np.ndarray:
+    """Projector frame ids of one stack of ``profile`` (see `edge.sensors.base.stack_schedule`)."""
+    n, L = stack_layout(profile)
+    return stack_schedule(n, L)
+
+
+def max_value(bits: int) -> int:
+    return (1 << int(bits)) - 1
+
+
+class DepthPipeline:
+    """Processing chain for one profile (see module docstring).  Build once, call `process` per stack."""
+
+    def __init__(self, profile) -> None:
+        from edge.codes import get_code
+
+        if profile.projector.kind != "columns":
+            raise ValueError(
+                f"the service decodes 'columns' projectors (coded patterns); profile {profile.name!r} "
+                f"has projector.kind = {profile.projector.kind!r}")
+        self.profile = profile
+        self.code = get_code(profile.code.name)
+        self.n, self.source_length = stack_layout(profile)
+        self.schedule = profile_schedule(profile)
+        self.geometry = profile.geometry
+        self.stripe = int(profile.projector.stripe)
+        self.columns = min(self.code.size, -(-int(profile.projector.width) // self.stripe))
+        self.full_scale = float(max_value(profile.camera.bits))
+        self.source_bits = (np.array([c == "1" for c in profile.code.source], dtype=bool)
+                            if profile.code.source else None)
+        if self.source_bits is not None and self.source_bits.all():
+            self.source_bits = None  # an all-ones code ("1", "11"...) is no spreading at all
+
+    # -- stages ---------------------------------------------------------------------------
+    def despread(self, images: np.ndarray) -> np.ndarray:
+        """(m * L, H, W) slot images -> (m, H, W) de-spread images (identity when L = 1).
+
+        De-spread images are float32 own-light amplitudes normalised to [0, 1] of full scale
+        (the decoder's convention for float input); rejected symbols are 0.
+        """
+        if self.source_bits is None:
+            return images
+        from edge.source.matched_filter import despread
+
+        amplitude = despread(images, self.profile.code.source).frames
+        return np.clip(amplitude / np.float32(self.full_scale), 0.0, 1.0, dtype=np.float32)
+
+    def split(self, frames: list[Frame] | tuple[Frame, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Frames of one stack (schedule order) -> code frames (n, H, W), white (H, W), black (H, W)."""
+        ids = np.array([f.projector_frame for f in frames], dtype=np.int64)
+        if ids.shape != self.schedule.shape or not np.array_equal(ids % (1 << 16), self.schedule % (1 << 16)):
+            raise ValueError(
+                f"stack frames must follow the profile schedule of {self.schedule.size} projector frames, "
+                f"got ids {ids.tolist()[:8]}...")
+        images = self.despread(np.stack([f.image for f in frames]))
+        return images[: self.n], images[self.n], images[self.n + 1]
+
+    def decode(self, codes: np.ndarray, white: np.ndarray, black: np.ndarray):
+        """`edge.decode.decode` with the profile's method, noise model, thresholds and disparity band."""
+        from edge.decode import decode
+
+        p = self.profile
+        return decode(
+            codes, white, black, self.code, method=p.decoder.method,
+            min_disparity=p.decoder.min_disparity, max_disparity=p.decoder.max_disparity,
+            sigma_r=max(p.camera.sigma_r, 1e-4), sigma_s=p.camera.sigma_s,
+            min_contrast=p.decoder.min_contrast, min_confidence=p.decoder.min_confidence,
+            columns=self.columns, stripe=self.stripe,
+            bit_depth=p.camera.bits if codes.dtype == np.uint16 else None,
+        )
+
+    def validity(self, decoded, white: np.ndarray, black: np.ndarray) -> np.ndarray:
+        """(H, W) bool: the decoder's valid mask (it applies the profile's contrast and confidence
+        thresholds) and a non-negative column."""
+        return np.asarray(decoded.valid, dtype=bool) & (np.asarray(decoded.column) >= 0)
+
+    def process(self, stack: Stack, masked_capture: MaskedCaptureFn | None = None) -> DepthResult:
+        """Depth for one complete stack (see module docstring)."""
+        t0 = time.perf_counter()
+        codes, white, black = self.split(stack.frames)
+        decoded = self.decode(codes, white, black)
+        valid = self.validity(decoded, white, black)
+        column = np.where(valid, np.asarray(decoded.column, dtype=np.int32), np.int32(-1))
+        confidence = np.asarray(decoded.confidence, dtype=np.float32)
+        rounds, extra = 0, ()
+        if self.profile.edc.rounds > 0:
+            column, confidence, rounds, extra = self.adaptive(stack, codes, white, black, column, confidence,
+                                                              masked_capture)
+            valid = column >= 0
+        depth = column_to_depth_mm(column, self.geometry, stripe=self.stripe)
+        return DepthResult(
+            stack=stack.stack, sequence=stack.first_sequence, timestamp_ns=stack.timestamp_ns,
+            received_ns=stack.received_ns, depth_mm=depth, confidence=confidence_to_u8(confidence, depth > 0),
+            column=column, decode_s=time.perf_counter() - t0, edc_rounds=rounds, extra_frames=tuple(extra),
+        )
+
+    def adaptive(self, stack, codes, white, black, column, confidence, masked_capture):
+        """EDC rounds: filled in by `edge.edc` integration (see `edge.runtime.edc_stage`)."""
+        from .edc_stage import run_adaptive
+
+        return run_adaptive(self, stack, codes, white, black, column, confidence, masked_capture)

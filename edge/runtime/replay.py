@@ -1,0 +1,125 @@
+"""Offline replay: decode the frames of a recording with its recorded profile and compare the depth.
+
+`replay_recording(path)` reads the recording stack by stack (`RecordingReader.stacks`), assembles
+each stack exactly as the service does (`StackAssembler`: incomplete stacks are dropped and
+counted), runs the same `DepthPipeline.process` (EDC rounds get the recorded masked frames back),
+and compares depth (and confidence) with what the service recorded, bit for bit.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from ..sensors.base import Frame, parse_projector_frame
+from .assembly import StackAssembler
+from .pipeline import DepthPipeline, DepthResult
+
+
+@dataclass
+class ReplayReport:
+    """What a replay found.  ``ok`` is True when every compared stack matched and the file was whole."""
+
+    path: str
+    profile: str = ""
+    stacks_read: int = 0
+    stacks_compared: int = 0
+    stacks_matched: int = 0
+    stacks_without_output: int = 0
+    stacks_incomplete: int = 0
+    mismatches: list[str] = field(default_factory=list)
+    problem: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return not self.mismatches and not self.problem and self.stacks_compared > 0
+
+    def lines(self) -> list[str]:
+        out = [f"{self.path}: profile {self.profile!r}, {self.stacks_read} stacks read, "
+               f"{self.stacks_compared} compared, {self.stacks_matched} bit-exact, "
+               f"{len(self.mismatches)} differ, {self.stacks_without_output} decoded without a recorded "
+               f"output, {self.stacks_incomplete} incomplete (dropped)"]
+        out += [f"  mismatch: {m}" for m in self.mismatches[:20]]
+        if self.problem:
+            out.append(f"  problem: {self.problem}")
+        if self.stacks_compared == 0 and not self.problem:
+            out.append("  problem: no recorded depth output to compare against")
+        return out
+
+
+def to_frame(recorded: Any) -> Frame:
+    """`edge.io.mcap_reader.RecordedFrame` -> `Frame`."""
+    return Frame(recorded.image, int(recorded.sequence), int(recorded.timestamp_ns), float(recorded.exposure_us),
+                 int(recorded.projector_frame), int(recorded.stack))
+
+
+def _describe_diff(name: str, got: np.ndarray, want: np.ndarray) -> str:
+    if got.shape != want.shape:
+        return f"{name} shape {got.shape} != recorded {want.shape}"
+    diff = got != want
+    ys, xs = np.nonzero(diff)
+    return (f"{name}: {int(diff.sum())} of {diff.size} pixels differ (first at y={ys[0]}, x={xs[0]}: "
+            f"{got[ys[0], xs[0]]} vs recorded {want[ys[0], xs[0]]})")
+
+
+def replay_recording(path: str | os.PathLike[str], *, expected_profile: Any = None,
+                     on_result: Callable[[DepthResult], None] | None = None) -> ReplayReport:
+    """Replay ``path`` (see module docstring).  Raises `edge.io.mcap.RecordingError` for a file that is
+    not a recording or has no usable profile; a truncated/corrupt tail ends the replay with
+    ``report.problem`` set after everything readable was replayed."""
+    from edge.io.mcap import RecordingError, RecordingReader
+
+    reader = RecordingReader(path, expected_profile=expected_profile, strict=False)
+    if reader.profile is None:
+        raise RecordingError(f"{os.fspath(path)}: the recording holds no edge profile; cannot replay it")
+    report = ReplayReport(os.fspath(path), reader.profile.name)
+    pipeline = DepthPipeline(reader.profile)
+    assembler = StackAssembler(pipeline.schedule)
+    try:
+        for recorded in reader.stacks():
+            if not recorded.frames:
+                continue
+            report.stacks_read += 1
+            regular = [to_frame(f) for f in recorded.frames if parse_projector_frame(f.projector_frame).edc_round == 0]
+            masked = [to_frame(f) for f in recorded.frames if parse_projector_frame(f.projector_frame).edc_round > 0]
+            stack = None
+            for frame in regular:
+                stack = assembler.push(frame, received_ns=frame.timestamp_ns) or stack
+            if stack is None:
+                assembler.flush()
+                continue
+
+            def recorded_masked(stack_id: int, edc_round: int, rows: np.ndarray) -> list[Frame]:
+                got = [f for f in masked if parse_projector_frame(f.projector_frame).edc_round == edc_round]
+                if len(got) != len(rows):
+                    raise ValueError(f"stack {stack_id}: EDC round {edc_round} asks for {len(rows)} frames, "
+                                     f"the recording holds {len(got)}")
+                return got
+
+            result = pipeline.process(stack, recorded_masked)
+            if on_result is not None:
+                on_result(result)
+            out = recorded.output
+            if out is None:
+                report.stacks_without_output += 1
+                continue
+            report.stacks_compared += 1
+            problems = []
+            if not np.array_equal(result.depth_mm, out.depth_mm):
+                problems.append(_describe_diff("depth", result.depth_mm, out.depth_mm))
+            if not np.array_equal(result.confidence, out.confidence):
+                problems.append(_describe_diff("confidence", result.confidence, out.confidence))
+            if problems:
+                report.mismatches.append(f"stack {recorded.stack}: " + "; ".join(problems))
+            else:
+                report.stacks_matched += 1
+        assembler.flush()
+    except RecordingError as exc:  # strict=False normally reports via reader.problem; be safe
+        report.problem = str(exc)
+    report.stacks_incomplete = assembler.counters.stacks_incomplete
+    if reader.problem and not report.problem:
+        report.problem = reader.problem
+    return report

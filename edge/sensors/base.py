@@ -1,0 +1,175 @@
+"""What every sensor backend produces: `Frame` records, projector frame ids and the `Sensor` protocol.
+
+A depth map is computed from one *stack* of frames: the ``n`` code frames of the profile's code,
+then a white (projector all on) and a black (projector all off) calibration frame.  When the
+profile has a light-source code of length ``L``, every one of those ``n + 2`` projector frames is
+shown as ``L`` consecutive *slots* (the source code's on/off chips), so a stack holds
+``(n + 2) * L`` camera frames.  EDC rounds re-capture *masked* versions of the same frames.
+
+Projector frame ids pack these three facts into one non-negative int::
+
+    id = (edc_round << 16) | (slot << 8) | base
+
+    base       0..n-1  code frame i;  WHITE (0xFE) calibration all-on;  BLACK (0xFF) all-off
+    slot       0..L-1  source-code chip (0 when the profile has no source code)
+    edc_round  0 = full pattern, r >= 1 = frames masked by adaptive round r
+
+so ``id == i`` for plain code frame ``i`` and ``WHITE``/``BLACK`` are recognisable in a log.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import NamedTuple, Protocol, runtime_checkable
+
+import numpy as np
+
+#: base id of the white (projector fully on) calibration frame
+WHITE = 0xFE
+#: base id of the black (projector fully off) calibration frame
+BLACK = 0xFF
+#: largest number of code frames an id can address (bases 0..MAX_CODE_FRAMES-1)
+MAX_CODE_FRAMES = 0xFE
+MAX_SLOTS = 0x100
+MAX_EDC_ROUND = 0x7FFF
+
+
+class ProjectorFrame(NamedTuple):
+    """A decoded projector frame id (see module docstring)."""
+
+    base: int
+    slot: int
+    edc_round: int
+
+    @property
+    def is_white(self) -> bool:
+        return self.base == WHITE
+
+    @property
+    def is_black(self) -> bool:
+        return self.base == BLACK
+
+    @property
+    def code_index(self) -> int:
+        """Code frame index 0..n-1, or -1 for a calibration frame."""
+        return self.base if self.base < MAX_CODE_FRAMES else -1
+
+
+def projector_frame_id(base: int, *, slot: int = 0, edc_round: int = 0) -> int:
+    """Pack (base, slot, edc_round) into one projector frame id.
+
+    base: code frame index 0..253, `WHITE` or `BLACK`; slot: 0..255; edc_round: 0..32767.
+    """
+    if not 0 <= base <= BLACK:
+        raise ValueError(f"projector frame base must be a code frame 0..{MAX_CODE_FRAMES - 1}, WHITE or BLACK, got {base}")
+    if not 0 <= slot < MAX_SLOTS:
+        raise ValueError(f"source-code slot must be in 0..{MAX_SLOTS - 1}, got {slot}")
+    if not 0 <= edc_round <= MAX_EDC_ROUND:
+        raise ValueError(f"EDC round must be in 0..{MAX_EDC_ROUND}, got {edc_round}")
+    return (int(edc_round) << 16) | (int(slot) << 8) | int(base)
+
+
+def parse_projector_frame(frame_id: int) -> ProjectorFrame:
+    """Inverse of `projector_frame_id`."""
+    frame_id = int(frame_id)
+    if frame_id < 0 or frame_id >> 16 > MAX_EDC_ROUND:
+        raise ValueError(f"projector frame id must be in 0..{(MAX_EDC_ROUND << 16) | 0xFFFF}, got {frame_id}")
+    return ProjectorFrame(frame_id & 0xFF, (frame_id >> 8) & 0xFF, frame_id >> 16)
+
+
+def stack_schedule(n_code_frames: int, source_length: int = 1, *, edc_round: int = 0) -> np.ndarray:
+    """Projector frame ids of one stack, in capture order: (n + 2) * L int64.
+
+    Code frames 0..n-1, then WHITE, then BLACK; each expanded into ``source_length`` slots.
+    """
+    if not 1 <= n_code_frames <= MAX_CODE_FRAMES:
+        raise ValueError(f"a stack needs 1..{MAX_CODE_FRAMES} code frames, got {n_code_frames}")
+    if not 1 <= source_length <= MAX_SLOTS:
+        raise ValueError(f"source code length must be in 1..{MAX_SLOTS}, got {source_length}")
+    bases = list(range(n_code_frames)) + [WHITE, BLACK]
+    return np.array(
+        [projector_frame_id(b, slot=s, edc_round=edc_round) for b in bases for s in range(source_length)],
+        dtype=np.int64,
+    )
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Frame:
+    """One camera frame as a backend reports it.
+
+    image: (H, W) uint8 or uint16 camera intensities (0..2**bits-1).
+    sequence: camera frame counter (consecutive within a stack; gaps mean lost frames).
+    timestamp_ns: capture time in ns (host wall clock for sim/replay-as-recorded, device clock
+        mapped to host time for OAK).
+    exposure_us: exposure in microseconds.
+    projector_frame: projector frame id shown during the exposure (see `projector_frame_id`).
+    stack: id of the stack (depth map) the frame belongs to; increases by one per stack.
+    """
+
+    image: np.ndarray
+    sequence: int
+    timestamp_ns: int
+    exposure_us: float
+    projector_frame: int
+    stack: int
+
+
+@dataclass(frozen=True)
+class SensorInfo:
+    """What the runtime needs to know about a backend before frames arrive.
+
+    width, height: image size (pixels); bits: bits per sample (8 -> uint8 frames, else uint16);
+    fps: camera frame rate (frames/s, 0 = as fast as possible); n_code_frames, source_length:
+    the stack layout (see `stack_schedule`); name: backend name; metadata: free-form strings
+    recorded with the stream (serial number, firmware...).
+    """
+
+    name: str
+    width: int
+    height: int
+    bits: int
+    fps: float
+    n_code_frames: int
+    source_length: int = 1
+    metadata: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def schedule(self) -> np.ndarray:
+        return stack_schedule(self.n_code_frames, self.source_length)
+
+    @property
+    def frames_per_stack(self) -> int:
+        return (self.n_code_frames + 2) * self.source_length
+
+
+class EndOfStream(Exception):
+    """Raised by `Sensor.read` when a finite source (replay, ``--stacks N``) has no more frames."""
+
+
+@runtime_checkable
+class Sensor(Protocol):
+    """A frame source.  ``start()``; then ``read()`` from ONE thread; ``stop()`` from any thread."""
+
+    info: SensorInfo
+
+    def start(self) -> None: ...
+
+    def read(self, timeout_s: float = 1.0) -> Frame | None:
+        """The next frame, or None when none arrived within ``timeout_s``; EndOfStream at the end."""
+        ...
+
+    def stop(self) -> None: ...
+
+
+@runtime_checkable
+class MaskedCapture(Protocol):
+    """Backends that can re-capture masked frames for the adaptive EDC loop of one stack."""
+
+    def capture_masked(self, stack: int, edc_round: int, projector_rows: np.ndarray) -> list[Frame]:
+        """Capture masked projector frames for ``stack``.
+
+        projector_rows: (m, W_projector) uint8 projector column intensities (0/1 or levels) of
+        the m frames to show (every row of a frame is the same: column patterns).
+        Returns m frames whose ids carry ``edc_round``.
+        """
+        ...

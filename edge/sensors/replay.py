@@ -1,0 +1,106 @@
+"""Replay backend: the camera frames of an MCAP recording, at recorded or maximum speed.
+
+Frames come out in file order with their recorded sequence numbers, timestamps, projector frame
+ids and stack ids (so gaps and drops in the recording reach the assembler unchanged).  Masked EDC
+frames (edc_round > 0) are not streamed: `capture_masked` hands them back when the adaptive loop
+of the same stack asks for them.  Timestamps are re-based to the host wall clock at `start`
+(``timestamp_ns`` = start time + recorded offset) so latency figures stay meaningful.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import threading
+import time
+
+import numpy as np
+
+from .base import EndOfStream, Frame, SensorInfo, parse_projector_frame
+
+
+class ReplaySensor:
+    """Frames from ``path``; ``max_speed`` = as fast as the consumer reads; ``loop`` = start again at the end."""
+
+    def __init__(self, path: str | os.PathLike[str], *, profile=None, max_speed: bool = False) -> None:
+        from edge.io.mcap import RecordingReader
+        from edge.runtime.pipeline import stack_layout
+
+        self.path = os.fspath(path)
+        self.reader = RecordingReader(self.path, expected_profile=profile, strict=False)
+        if self.reader.profile is None:
+            raise ValueError(f"{self.path}: the recording holds no edge profile; cannot replay it")
+        self.profile = self.reader.profile
+        n, L = stack_layout(self.profile)
+        cam = self.profile.camera
+        self.info = SensorInfo(name="replay", width=cam.width, height=cam.height, bits=cam.bits,
+                               fps=0.0 if max_speed else cam.rate_hz, n_code_frames=n, source_length=L,
+                               metadata={"backend": "replay", "path": self.path, **self.reader.sensor_metadata})
+        self.max_speed = max_speed
+        self._frames: queue.Queue = queue.Queue(maxsize=256)
+        self._masked: dict[int, list[Frame]] = {}
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._t0_host = 0
+        self._t0_rec: int | None = None
+        self.problem: str | None = None
+
+    def _load(self) -> None:
+        try:
+            for recorded in self.reader.stacks():
+                for f in recorded.frames:
+                    frame = Frame(f.image, int(f.sequence), int(f.timestamp_ns), float(f.exposure_us),
+                                  int(f.projector_frame), int(f.stack))
+                    if parse_projector_frame(frame.projector_frame).edc_round:
+                        with self._lock:
+                            self._masked.setdefault(frame.stack, []).append(frame)
+                        continue
+                    while not self._stop.is_set():
+                        try:
+                            self._frames.put(frame, timeout=0.1)
+                            break
+                        except queue.Full:
+                            continue
+                    if self._stop.is_set():
+                        return
+        finally:
+            self.problem = self.reader.problem
+            self._frames.put(None)
+
+    def start(self) -> None:
+        self._t0_host = time.time_ns()
+        self._thread = threading.Thread(target=self._load, name="edge-replay-read", daemon=True)
+        self._thread.start()
+
+    def read(self, timeout_s: float = 1.0) -> Frame | None:
+        try:
+            frame = self._frames.get(timeout=timeout_s)
+        except queue.Empty:
+            return None
+        if frame is None:
+            self._frames.put(None)
+            raise EndOfStream()
+        if self._t0_rec is None:
+            self._t0_rec = frame.timestamp_ns
+        offset = frame.timestamp_ns - self._t0_rec
+        if not self.max_speed:
+            wait = (self._t0_host + offset - time.time_ns()) / 1e9
+            if wait > 0:
+                time.sleep(wait)
+        return Frame(frame.image, frame.sequence, self._t0_host + offset, frame.exposure_us,
+                     frame.projector_frame, frame.stack)
+
+    def capture_masked(self, stack: int, edc_round: int, projector_rows: np.ndarray) -> list[Frame]:
+        with self._lock:
+            frames = [f for f in self._masked.get(stack, [])
+                      if parse_projector_frame(f.projector_frame).edc_round == edc_round]
+        if len(frames) != len(projector_rows):
+            raise ValueError(f"{self.path}: stack {stack} EDC round {edc_round} needs {len(projector_rows)} "
+                             f"masked frames, the recording holds {len(frames)}")
+        return frames
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=10)

@@ -1,0 +1,182 @@
+"""Image formation, eq. (1): ``I_i = W[P_i] * A + I_a + N`` for a rectified projector-camera pair.
+
+`capture` renders ANY stack of projector images (code patterns, masked re-projection frames, dot
+patterns); `capture_code` renders a code at fixed total exposure plus its two calibration frames.
+
+Projector frames: shape (m, Hp, Wp) or (m, Wp) (column profiles, the same on every row).
+uint8 values are 0..255 (divided by 255); float values must already be in [0, 1]; other integer
+types must hold 0..255.  Hp must equal the camera height (rows are shared) or be 1.  Wp may be
+smaller than the projector (columns beyond it are dark) but not larger.
+
+Camera pixel (y, x) sees projector row y at column ``scene.column[y, x]`` (nearest column
+``scene.column_int`` by default, see `CameraModel.sampling`) and no projector light where
+``scene.lit`` is False.  Defocus blurs the pattern in projector space before warping; scattering
+and inter-reflection are computed from the warped frames actually projected.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from ..codes import Code
+from ._kernels import expose, warp_linear, warp_nearest
+from .camera import CameraModel
+from .scene import Scene
+
+
+@dataclass(frozen=True, eq=False)
+class Capture:
+    """A simulated capture of a code at fixed total exposure.
+
+    Attributes:
+        frames: (n, H, W) uint8 (8 bits) or uint16 camera frames, frame 0 first.
+        white: (H, W) calibration frame with the projector all on.
+        black: (H, W) calibration frame with the projector all off.
+        exposure: per-frame exposure of every frame (``total_exposure / n``).
+        code: the code projected.
+        stripe: projector columns per codeword.
+        bits: ADC bits of the frames.
+        camera: the camera model the frames were captured with.
+    """
+
+    frames: np.ndarray
+    white: np.ndarray
+    black: np.ndarray
+    exposure: float
+    code: Code
+    stripe: int
+    bits: int
+    camera: CameraModel | None = None
+
+
+def _as_rng(rng: np.random.Generator | int | None) -> np.random.Generator:
+    if isinstance(rng, np.random.Generator):
+        return rng
+    if rng is None or isinstance(rng, (int, np.integer)):
+        return np.random.default_rng(rng)
+    raise ValueError(f"rng must be a numpy Generator or an int seed, got {type(rng).__name__}")
+
+
+def normalise_projector_frames(frames: np.ndarray, height: int, projector_width: int) -> np.ndarray:
+    """Projector frames as float32 (m, Hp, Wp) in [0, 1]; see the module docstring for accepted input."""
+    p = np.asarray(frames)
+    if p.ndim == 2:
+        p = p[:, None, :]
+    if p.ndim != 3:
+        raise ValueError(f"projector frames must have shape (m, Hp, Wp) or (m, Wp), got {p.shape}")
+    m, hp, wp = p.shape
+    if m < 1 or wp < 1:
+        raise ValueError(f"projector frames must hold at least one frame and one column, got {p.shape}")
+    if hp not in (1, height):
+        raise ValueError(f"projector frames have {hp} rows; expected {height} (camera rows) or 1")
+    if wp > projector_width:
+        raise ValueError(f"projector frames are {wp} columns wide but the projector has {projector_width} columns")
+    if p.dtype == np.uint8:
+        out = p.astype(np.float32) * np.float32(1.0 / 255.0)
+    elif np.issubdtype(p.dtype, np.integer):
+        if p.size and (p.min() < 0 or p.max() > 255):
+            raise ValueError(f"integer projector frames must hold 0..255, got {p.min()}..{p.max()}")
+        out = p.astype(np.float32) * np.float32(1.0 / 255.0)
+    elif np.issubdtype(p.dtype, np.floating) or p.dtype == np.bool_:
+        out = p.astype(np.float32)
+        if out.size and not (np.isfinite(out).all() and out.min() >= 0.0 and out.max() <= 1.0 + 1e-6):
+            raise ValueError(f"float projector frames must be in [0, 1], got {np.nanmin(out)}..{np.nanmax(out)}")
+    else:
+        raise ValueError(f"projector frames must be uint8, integer or float, got dtype {p.dtype}")
+    return np.ascontiguousarray(out)
+
+
+def defocus(patterns: np.ndarray, sigma: float) -> np.ndarray:
+    """Gaussian blur of (m, Hp, Wp) float32 projector frames by ``sigma`` projector pixels."""
+    if sigma <= 0:
+        return patterns
+    out = np.empty_like(patterns)
+    sigma_y = sigma if patterns.shape[1] > 1 else 1e-6
+    for i in range(patterns.shape[0]):
+        blurred = cv2.GaussianBlur(patterns[i], (0, 0), sigmaX=float(sigma), sigmaY=float(sigma_y),
+                                   borderType=cv2.BORDER_REPLICATE)
+        out[i] = blurred.reshape(patterns.shape[1:])
+    return out
+
+
+def projector_irradiance(scene: Scene, projector_frames: np.ndarray, camera: CameraModel) -> np.ndarray:
+    """(m, H, W) float32 projector irradiance at each camera pixel (0..1 per unit pattern), GI included."""
+    h = scene.height
+    patterns = normalise_projector_frames(projector_frames, h, int(scene.geometry.projector_width))
+    patterns = defocus(patterns, camera.defocus_sigma)
+    row_of = (np.arange(h, dtype=np.int32) if patterns.shape[1] == h else np.zeros(h, dtype=np.int32))
+    if camera.sampling == "linear":
+        e = warp_linear(patterns, scene.column, row_of)
+    else:
+        e = warp_nearest(patterns, scene.column_int, row_of)
+    if scene.has_scattering or scene.interreflection is not None:
+        e = scene.indirect_light(e)
+    return e
+
+
+def capture(scene: Scene, projector_frames: np.ndarray, camera: CameraModel, *,
+            rng: np.random.Generator | int | None, exposure: float | None = None) -> np.ndarray:
+    """Camera frames (m, H, W) of ``scene`` lit by ``projector_frames`` (eq. 1 plus noise and ADC).
+
+    exposure: per-frame exposure (relative units), default ``camera.exposure``; light and ambient
+    scale linearly with it.  rng: numpy Generator (or int seed) for the noise.
+    Returns uint8 frames for 8-bit cameras, uint16 (0..2**bits-1) otherwise.
+    """
+    t = camera.exposure if exposure is None else exposure
+    if not (np.isfinite(t) and t > 0):
+        raise ValueError(f"capture: exposure must be > 0, got {t}")
+    gen = _as_rng(rng)
+    e = projector_irradiance(scene, projector_frames, camera)
+    normals = gen.standard_normal(e.shape, dtype=np.float32)
+    out = np.empty(e.shape, dtype=np.uint8 if camera.bits == 8 else np.uint16)
+    expose(e, scene.albedo, float(t * camera.projector), float(t * camera.ambient), normals,
+           float(camera.sigma_r**2), float(camera.sigma_s**2), float(camera.levels), out)
+    return out
+
+
+def code_profiles(code: Code, projector_width: int, *, stripe: int = 1) -> np.ndarray:
+    """(n, projector_width) float32 column profiles of ``code``: column x sends row ``x // stripe``.
+
+    N-ary symbols s are rendered at intensity ``s / (q - 1)``.  Columns beyond the code's
+    ``size * stripe`` are dark.
+    """
+    if stripe < 1:
+        raise ValueError(f"stripe must be >= 1, got {stripe}")
+    if projector_width < 1:
+        raise ValueError(f"projector_width must be >= 1, got {projector_width}")
+    rows = np.arange(projector_width) // stripe
+    covered = rows < code.size
+    symbols = np.zeros((code.n, projector_width), dtype=np.float32)
+    symbols[:, covered] = code.codebook[rows[covered]].T.astype(np.float32) / np.float32(code.q - 1)
+    return symbols
+
+
+def capture_code(scene: Scene, code: Code, camera: CameraModel, *, rng: np.random.Generator | int | None,
+                 stripe: int = 1) -> Capture:
+    """Capture ``code`` at fixed total exposure: n frames of exposure ``camera.total_exposure / n``.
+
+    The white (all on) and black (all off) calibration frames use the same per-frame exposure and
+    are captured after the code frames from the same noise stream.  Raises ValueError if the scene
+    sees projector columns the code (times ``stripe``) does not cover.
+    """
+    if not isinstance(code, Code):
+        raise ValueError(f"capture_code: expected an edge.codes.Code, got {type(code).__name__}")
+    if int(stripe) != stripe or stripe < 1:
+        raise ValueError(f"capture_code: stripe must be a positive integer, got {stripe}")
+    wp = int(scene.geometry.projector_width)
+    covered = code.size * int(stripe)
+    seen = scene.column_int[scene.lit]
+    if seen.size and int(seen.max()) >= covered:
+        raise ValueError(
+            f"code {code.name!r} with stripe {stripe} covers projector columns 0..{covered - 1}, but scene "
+            f"{scene.name!r} sees columns up to {int(seen.max())}; use a larger stripe or a longer code"
+        )
+    profiles = code_profiles(code, wp, stripe=int(stripe))
+    stack = np.concatenate([profiles, np.ones((1, wp), np.float32), np.zeros((1, wp), np.float32)], axis=0)
+    t = camera.frame_exposure(code.n)
+    frames = capture(scene, stack, camera, rng=rng, exposure=t)
+    return Capture(frames=frames[:-2], white=frames[-2], black=frames[-1], exposure=t, code=code,
+                   stripe=int(stripe), bits=camera.bits, camera=camera)

@@ -1,0 +1,58 @@
+"""Shared helpers for the runtime/service tests (not collected: no test_ prefix)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+from edge.codes.code import pack_rows
+from edge.runtime.pipeline import DepthPipeline
+
+DATA = Path(__file__).parent / "data"
+TEST_PROFILE = DATA / "profiles" / "test-small.toml"
+
+
+def load_test_profile(**updates):
+    from edge.profiles import apply_update, load_profile
+
+    p = load_profile(TEST_PROFILE)
+    return apply_update(p, updates) if updates else p
+
+
+def hard_decode_numpy(frames, white, black, code):
+    """Reference hard decoder (plain numpy): threshold at (white + black) / 2, nearest codeword."""
+    f = frames.astype(np.float32)
+    thr = (white.astype(np.float32) + black.astype(np.float32)) / 2
+    bits = (f > thr[None]).astype(np.uint8)  # (n, H, W)
+    n, h, w = bits.shape
+    words = pack_rows(bits.reshape(n, -1).T)  # (H*W,)
+    book = pack_rows(code.codebook)
+    dist = np.bitwise_count(words[:, None] ^ book[None, :]).astype(np.int32)
+    best = np.argmin(dist, axis=1)
+    d1 = dist[np.arange(dist.shape[0]), best]
+    column = best.reshape(h, w).astype(np.int32)
+    conf = np.clip(1.0 - d1.reshape(h, w) / (code.d_min / 2.0), 0, 1).astype(np.float32)
+    valid = d1.reshape(h, w) < code.d_min / 2.0
+    return SimpleNamespace(column=np.where(valid, column, -1), confidence=conf, valid=valid)
+
+
+class NumpyPipeline(DepthPipeline):
+    """DepthPipeline with the plain-numpy hard decoder (no dependence on edge.decode)."""
+
+    delay_s = 0.0
+
+    def decode(self, codes, white, black):
+        if self.delay_s:
+            time.sleep(self.delay_s)
+        return hard_decode_numpy(codes, white, black, self.code)
+
+
+def slow_pipeline(delay_s: float):
+    class Slow(NumpyPipeline):
+        pass
+
+    Slow.delay_s = delay_s
+    return Slow

@@ -1,0 +1,158 @@
+"""Runtime building blocks: projector frame ids, stack assembly, drop-oldest queue, depth."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from edge.runtime.assembly import StackAssembler
+from edge.runtime.depth import column_to_depth_mm, column_to_disparity, confidence_to_u8, disparity_to_depth_mm
+from edge.runtime.stack_queue import Closed, LatestQueue
+from edge.sensors.base import (BLACK, WHITE, Frame, SensorInfo, parse_projector_frame, projector_frame_id,
+                               stack_schedule)
+
+
+def test_projector_frame_ids_roundtrip_and_schedule():
+    assert projector_frame_id(3) == 3
+    pid = projector_frame_id(WHITE, slot=2, edc_round=1)
+    assert parse_projector_frame(pid) == (WHITE, 2, 1)
+    assert parse_projector_frame(pid).is_white and parse_projector_frame(BLACK).is_black
+    assert parse_projector_frame(5).code_index == 5 and parse_projector_frame(WHITE).code_index == -1
+    s = stack_schedule(3)
+    assert s.tolist() == [0, 1, 2, WHITE, BLACK]
+    s2 = stack_schedule(2, 2)
+    assert [tuple(parse_projector_frame(i)[:2]) for i in s2] == [(0, 0), (0, 1), (1, 0), (1, 1), (WHITE, 0), (WHITE, 1), (BLACK, 0), (BLACK, 1)]
+    assert SensorInfo("x", 4, 3, 8, 0.0, 3, 2).frames_per_stack == 10
+    with pytest.raises(ValueError, match="slot"):
+        projector_frame_id(0, slot=300)
+    with pytest.raises(ValueError, match="code frames"):
+        stack_schedule(0)
+
+
+def _frames(schedule, stack, seq0, value=None):
+    return [Frame(np.full((2, 3), stack if value is None else value, np.uint8), seq0 + i, 1000 * (seq0 + i), 100.0, int(p), stack)
+            for i, p in enumerate(schedule)]
+
+
+def test_assembly_complete_stacks():
+    sched = stack_schedule(3)
+    asm = StackAssembler(sched)
+    out = [s for f in _frames(sched, 0, 0) + _frames(sched, 1, 5) if (s := asm.push(f))]
+    assert [s.stack for s in out] == [0, 1]
+    assert out[1].first_sequence == 5 and out[1].timestamp_ns == 9000
+    assert out[0].images().shape == (5, 2, 3)
+    assert asm.counters.stacks_complete == 2 and asm.counters.stacks_incomplete == 0
+
+
+def test_assembly_sequence_gap_drops_stack_and_counts():
+    sched = stack_schedule(3)
+    asm = StackAssembler(sched)
+    frames = _frames(sched, 0, 0) + _frames(sched, 1, 5) + _frames(sched, 2, 10)
+    del frames[7]  # lose frame 2 of stack 1
+    out = [s for f in frames if (s := asm.push(f))]
+    assert [s.stack for s in out] == [0, 2]
+    assert asm.counters.sequence_gaps == 1 and asm.counters.stacks_incomplete == 1
+    # every emitted stack holds only its own frames
+    for s in out:
+        assert all(f.stack == s.stack and int(f.image[0, 0]) == s.stack for f in s.frames)
+
+
+def test_assembly_out_of_order_drops_stack_and_counts():
+    sched = stack_schedule(3)
+    asm = StackAssembler(sched)
+    frames = _frames(sched, 0, 0) + _frames(sched, 1, 5) + _frames(sched, 2, 10)
+    frames[6], frames[7] = frames[7], frames[6]  # swap two frames of stack 1
+    out = [s for f in frames if (s := asm.push(f))]
+    assert [s.stack for s in out] == [0, 2]
+    assert asm.counters.out_of_order == 1 and asm.counters.stacks_incomplete == 1
+
+
+def test_assembly_lost_first_frame_and_truncated_tail():
+    sched = stack_schedule(2)
+    asm = StackAssembler(sched)
+    frames = _frames(sched, 0, 0) + _frames(sched, 1, 4)
+    frames = frames[1:] + _frames(sched, 2, 8)[:2]  # stack 0 misses its first frame, stack 2 its tail
+    out = [s for f in frames if (s := asm.push(f))]
+    assert [s.stack for s in out] == [1]
+    asm.flush()
+    assert asm.counters.stacks_incomplete == 2
+
+
+def test_assembly_rejects_wrong_projector_frame():
+    sched = stack_schedule(2)
+    asm = StackAssembler(sched)
+    frames = _frames(sched, 0, 0)
+    frames[1] = Frame(frames[1].image, 1, 0, 1.0, WHITE, 0)  # white where code frame 1 belongs
+    assert not [s for f in frames if (s := asm.push(f))]
+    asm.flush()
+    assert asm.counters.unexpected_frames == 1 and asm.counters.stacks_incomplete == 1
+
+
+def test_latest_queue_drops_oldest_and_never_blocks():
+    q: LatestQueue[int] = LatestQueue(2)
+    assert q.put(1) is None and q.put(2) is None
+    assert q.put(3) == 1 and q.dropped == 1
+    assert q.get(0) == 2 and q.get(0) == 3 and q.get(0.01) is None
+    q.put(4)
+    q.close()
+    assert q.get(0) == 4
+    with pytest.raises(Closed):
+        q.get(0)
+    with pytest.raises(ValueError, match="capacity"):
+        LatestQueue(0)
+
+
+def test_latest_queue_wakes_waiting_getter():
+    q: LatestQueue[int] = LatestQueue(1)
+    got = []
+    t = threading.Thread(target=lambda: got.append(q.get(5)))
+    t.start()
+    q.put(7)
+    t.join(5)
+    assert got == [7]
+
+
+class G:
+    focal_px = 560.0
+    baseline_m = 0.08
+    cx_camera = 320.0
+    cx_projector = 512.0
+
+
+def test_depth_from_column_matches_formula():
+    column = np.array([[100, 200, -1, 639], [0, 511, 300, 320]], dtype=np.int32)
+    depth = column_to_depth_mm(column, G())
+    x = np.arange(4)[None, :]
+    d = x - column
+    expected = np.rint(560.0 * 0.08 * 1000.0 / (d + 192.0))
+    ok = (column >= 0) & (d + 192 > 0) & (expected <= 65535)
+    assert depth.dtype == np.uint16
+    assert np.array_equal(depth[ok], expected[ok].astype(np.uint16))
+    assert np.all(depth[~ok] == 0)
+    assert depth[0, 2] == 0  # invalid column
+    assert depth[1, 1] == 0  # d + doffs = 1 - 511 + 192 <= 0
+
+
+def test_depth_invalid_cases_and_stripe():
+    disp = np.array([[np.nan, -192.0, -191.9999, 1e9]])
+    assert disparity_to_depth_mm(disp, G()).tolist() == [[0, 0, 0, 0]]
+    col = np.array([[10]], dtype=np.int32)
+    # stripe 4: codeword 10 covers projector columns 40..43, centre 41.5
+    assert column_to_depth_mm(col, G(), stripe=4)[0, 0] == np.uint16(np.rint(44800.0 / (0 - 41.5 + 192)))
+    assert np.isnan(column_to_disparity(np.array([[-1, 2]], np.int32))[0, 0])
+    with pytest.raises(ValueError, match="2-D"):
+        column_to_depth_mm(np.zeros(4, np.int32), G())
+
+
+def test_depth_is_deterministic():
+    rng = np.random.default_rng(1)
+    col = rng.integers(-1, 1024, size=(48, 64)).astype(np.int32)
+    assert np.array_equal(column_to_depth_mm(col, G()), column_to_depth_mm(col.copy(), G()))
+
+
+def test_confidence_to_u8():
+    c = np.array([[0.0, 0.5, 1.0, np.nan, 2.0]], dtype=np.float32)
+    assert confidence_to_u8(c).tolist() == [[0, 128, 255, 0, 255]]
+    assert confidence_to_u8(c, np.array([[1, 0, 1, 1, 1]], bool)).tolist() == [[0, 0, 255, 0, 255]]

@@ -1,0 +1,108 @@
+"""Service lifecycle with the simulated sensor: clean stop, stale-stack drops, config updates."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from _service_helpers import NumpyPipeline, load_test_profile, slow_pipeline
+from edge.runtime.service import ConfigRejected, Service
+from edge.sensors.sim import SimSensor
+
+
+class Collect:
+    def __init__(self):
+        self.results = []
+        self.status = []
+        self.closed = False
+
+    def on_result(self, r):
+        self.results.append(r)
+
+    def on_status(self, s):
+        self.status.append(s)
+
+    def close(self):
+        self.closed = True
+
+
+def test_service_runs_n_stacks_and_stops_cleanly():
+    profile = load_test_profile()
+    sink = Collect()
+    service = Service(profile, SimSensor(profile, max_speed=True), sinks=[sink], pipeline_factory=NumpyPipeline)
+    status = service.run(stacks=3)
+    assert status["stacks_decoded"] == 3 and len(sink.results) == 3 and sink.closed
+    assert sink.status and sink.status[-1]["stacks_decoded"] == 3
+    assert not [t for t in threading.enumerate() if t.name.startswith("edge-")]
+    r = sink.results[0]
+    assert r.depth_mm.dtype == np.uint16 and r.depth_mm.shape == (120, 160)
+    assert r.confidence.dtype == np.uint8
+    assert r.valid_fraction > 0.5
+    # the tilted plane of the test profile lies between 0.7 and 1.6 m
+    d = r.depth_mm[r.depth_mm > 0]
+    assert 600 < np.median(d) < 1700
+    assert [x.stack for x in sink.results] == sorted(x.stack for x in sink.results)
+
+
+def test_depth_changes_over_time_with_moving_scene():
+    profile = load_test_profile()
+    sensor = SimSensor(profile, max_speed=True)
+    a, b = sensor.scene(0).depth_m, sensor.scene(5).depth_m
+    assert np.nanmax(np.abs(a - b)) > 0.005
+
+
+def test_slow_decoder_drops_whole_stale_stacks_never_mixes():
+    profile = load_test_profile()
+    sink = Collect()
+    seen_frames = []
+
+    class Checking(slow_pipeline(0.15)):
+        def process(self, stack, masked_capture=None):
+            seen_frames.append([f.stack for f in stack.frames])
+            return super().process(stack, masked_capture)
+
+    service = Service(profile, SimSensor(profile, max_speed=True, poses=2), sinks=[sink],
+                      pipeline_factory=Checking, queue_capacity=1)
+    status = service.run(stacks=4)
+    assert status["stacks_dropped_stale"] > 0
+    assert status["stacks_dropped"] >= status["stacks_dropped_stale"]
+    assert all(len(set(ids)) == 1 for ids in seen_frames)  # never a mix of two stacks
+    stacks = [r.stack for r in sink.results]
+    assert stacks == sorted(stacks) and len(set(stacks)) == len(stacks)
+    assert stacks[-1] - stacks[0] > len(stacks) - 1  # stacks were skipped, i.e. dropped
+
+
+def test_config_update_validated_live_and_bad_rejected():
+    profile = load_test_profile()
+    service = Service(profile, SimSensor(profile, max_speed=True), pipeline_factory=NumpyPipeline)
+    new = service.update_config({"decoder": {"min_confidence": 0.5}})
+    assert new.decoder.min_confidence == 0.5 and service.profile.decoder.min_confidence == 0.5
+    with pytest.raises(ValueError, match="decoder.min_confidence"):
+        service.update_config({"decoder": {"min_confidence": 7}})
+    with pytest.raises(ConfigRejected, match="camera.width"):
+        service.update_config({"camera": {"width": 320}})
+    with pytest.raises(ValueError, match="unknown key"):
+        service.update_config({"decoder": {"bogus": 1}})
+    assert service.profile.decoder.min_confidence == 0.5 and service.profile.camera.width == 160
+    st = service.status()
+    assert st["config_updates"] == 1 and st["config_rejected"] == 3
+
+
+def test_stop_from_another_thread_while_running():
+    profile = load_test_profile()
+    service = Service(profile, SimSensor(profile), pipeline_factory=NumpyPipeline)  # real-time pacing
+    timer = threading.Timer(0.8, service.stop)
+    timer.start()
+    status = service.run(seconds=30)
+    timer.join()
+    assert status["uptime_s"] < 10
+    assert not [t for t in threading.enumerate() if t.name.startswith("edge-")]
+
+
+def test_bad_run_arguments():
+    profile = load_test_profile()
+    service = Service(profile, SimSensor(profile, max_speed=True), pipeline_factory=NumpyPipeline)
+    with pytest.raises(ValueError, match="stacks"):
+        service.run(stacks=0)

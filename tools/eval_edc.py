@@ -1,0 +1,32 @@
+"""EDC evaluation: error-map ROC and adaptive loop vs Gupta et al. 2011 on simulated GI scenes.
+
+Usage: python tools/eval_edc.py [--out docs/results/edc] [--width 256 --height 192 --seed 0 --rounds 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from edge.edc.report import run_report
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "docs" / "results" / "edc")
+    p.add_argument("--width", type=int, default=256)
+    p.add_argument("--height", type=int, default=192)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--rounds", type=int, default=3)
+    a = p.parse_args(argv)
+    cmd = "python tools/eval_edc.py" + "".join(
+        f" --{k} {v}" for k, v in (("width", a.width), ("height", a.height), ("seed", a.seed), ("rounds", a.rounds))
+        if v != p.get_default(k))
+    run_report(a.out, width=a.width, height=a.height, seed=a.seed, rounds=a.rounds, command=cmd)
+    print((a.out / "README.md").read_text())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
