@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 from edge.codes import get_code
-from edge.edc.adaptive import AdaptiveScan, run_adaptive
+from edge.edc.adaptive import AdaptiveScan, run_adaptive, supported
 from edge.edc.gupta import EnsembleScheme, ensemble_vote
 from edge.edc.lookup import lookup_columns
 from edge.edc.maxminsw import maxminsw_code, stripe_widths, verify_walk
+from edge.edc.scheme import EdcScheme, unmeasurable_columns
 
 EDC = "xor02-10+crc5"
 
@@ -116,14 +117,15 @@ def test_masked_patterns_remove_indirect_light():
     assert (b[dark] < 0.75 * a[dark]).all() and (b[dark] > 0).all()
 
 
-def test_adaptive_round2_frames_are_masked_and_counted():
+def test_adaptive_round2_frames_are_masked_and_counted_calibrated():
     make_scene, CameraModel = _sim()
     from edge.sim import capture
 
     scene = make_scene("v-groove", 96, 48, seed=0, angle_deg=30.0, albedo=0.9, interreflection=3.0)
     cam = CameraModel()
     code = get_code(EDC)
-    scan = AdaptiveScan(code, int(scene.geometry.projector_width), scene.height, full_scale=cam.levels)
+    scan = AdaptiveScan(code, int(scene.geometry.projector_width), scene.height, full_scale=cam.levels,
+                        binarisation="calibrated")
     frames = scan.start()
     assert frames.shape == (code.n + 2, scene.height, scene.geometry.projector_width)
     assert (frames[code.n] == 255).all() and (frames[code.n + 1] == 0).all()
@@ -143,25 +145,89 @@ def test_adaptive_round2_frames_are_masked_and_counted():
     assert r2.checked == r1.failing and r2.calibration_frames == 1
 
 
+def test_self_calibrated_rounds_have_no_calibration_frames():
+    make_scene, CameraModel = _sim()
+    from edge.sim import capture
+
+    scene = make_scene("v-groove", 96, 48, seed=0, angle_deg=30.0, albedo=0.9, interreflection=3.0)
+    cam = CameraModel()
+    code = get_code(EDC)
+    scan = AdaptiveScan(code, int(scene.geometry.projector_width), scene.height, full_scale=cam.levels,
+                        noise=(cam.sigma_r, cam.sigma_s))
+    assert scan.binarisation == "self"  # the default
+    frames = scan.start()
+    assert frames.shape[0] == code.n == scan.expected_frames
+    t = cam.frame_exposure(code.n)
+    r1 = scan.update(capture(scene, frames, cam, rng=1, exposure=t))
+    assert r1.frames == code.n and r1.calibration_frames == 0 and r1.resolved > 0
+    res = scan.result()
+    assert not (res.column == 0).any()  # column 0 (all-zero codeword) is never claimed
+    nxt = scan.next_frames()
+    assert nxt is not None and nxt.shape[0] == code.n and (nxt > 0).mean() < (frames > 0).mean()
+    r2 = scan.update(capture(scene, nxt, cam, rng=2, exposure=t))
+    assert r2.checked == r1.failing and r2.frames == code.n
+
+
+def test_self_binarisation_matches_calibrated_on_clean_words():
+    code = get_code(EDC)
+    words = code.codebook.astype(np.uint8)
+    frames, white, black = _synthetic(words)
+    scheme = EdcScheme(code)
+    col_cal, _ = scheme.decide(frames, white, black)
+    col_self, _ = scheme.decide(frames, frames.max(axis=0), frames.min(axis=0))
+    # identical except column 0, whose all-zero word has no 1 to calibrate on
+    assert np.array_equal(col_cal, np.arange(code.size))
+    assert np.array_equal(col_self[1:], np.arange(1, code.size))
+    assert unmeasurable_columns(scheme).nonzero()[0].tolist() == [0]
+    assert unmeasurable_columns(EdcScheme("gray-10+crc5")).nonzero()[0].tolist() == [0]
+    # CRC 0x15 has the factor x+1: every codeword has even weight, so none is all-one (n = 15 odd)
+    assert (code.codebook.sum(axis=1) % 2 == 0).all()
+
+
+def test_neighbour_support_rule():
+    col = np.full((5, 7), -1, np.int64)
+    col[2, 1:6] = [100, 101, 900, 103, 104]    # 900: a chance codeword amid a smooth surface
+    col[0:5, 0] = -1
+    cand = col >= 0
+    ok = supported(col, cand, 3)
+    assert ok[2, 1] and ok[2, 2] and ok[2, 4] and ok[2, 5] and not ok[2, 3]
+    # a one-pixel-wide lit strip: no horizontal neighbour decoded, vertical agreement counts
+    strip = np.full((4, 5), -1, np.int64)
+    strip[:, 2] = [50, 50, 51, 52]
+    assert supported(strip, strip >= 0, 3)[:, 2].all()
+    # a vertical run of one wrong column next to decoded, different columns: rejected
+    edge = np.tile(np.array([200, 201, 7, 203], np.int64), (4, 1))
+    assert not supported(edge, edge >= 0, 3)[:, 2].any()
+    # an isolated pixel has no support
+    lone = np.full((3, 3), -1, np.int64)
+    lone[1, 1] = 10
+    assert not supported(lone, lone >= 0, 3).any()
+
+
 def test_loop_terminates_when_nothing_can_be_resolved():
     make_scene, CameraModel = _sim()
     scene = make_scene("v-groove", 64, 32, seed=0)
     dark = CameraModel(projector=0.0)  # no projector light reaches anything
     res = run_adaptive(scene, dark, EDC, rng=0, max_rounds=5)
+    # self-calibrated: a few noise pixels may clear the 6-sigma floor, fail the check, and end it as "no change"
+    assert res.n_rounds == 1 and not res.valid.any() and res.stop_reason in ("nothing to resolve", "no change")
+    res = run_adaptive(scene, dark, EDC, rng=0, max_rounds=5, binarisation="calibrated")
     assert res.n_rounds == 1 and not res.valid.any() and res.stop_reason == "nothing to resolve"
 
 
-def test_loop_terminates_on_garbage_frames():
+@pytest.mark.parametrize("mode", ["self", "calibrated"])
+def test_loop_terminates_on_garbage_frames(mode):
     code = get_code(EDC)
     rng = np.random.default_rng(0)
-    scan = AdaptiveScan(code, 1024, 16, max_rounds=4)
+    scan = AdaptiveScan(code, 1024, 16, max_rounds=4, binarisation=mode, neighbour_tolerance=None)
     frames = scan.start()
     rounds = 0
     while frames is not None:
         cap = rng.integers(0, 251, size=(frames.shape[0], 16, 40)).astype(np.uint8)
-        cap[code.n] = 250  # bright white: every pixel over the shadow floor, words random
-        if rounds == 0:
-            cap[code.n + 1] = 0
+        if mode == "calibrated":
+            cap[code.n] = 250  # bright white: every pixel over the shadow floor, words random
+            if rounds == 0:
+                cap[code.n + 1] = 0
         scan.update(cap)
         rounds += 1
         frames = scan.next_frames()
@@ -174,7 +240,15 @@ def test_bad_inputs():
     code = get_code(EDC)
     with pytest.raises(ValueError, match="round limit"):
         AdaptiveScan(code, 1024, 8, max_rounds=0)
-    scan = AdaptiveScan(code, 1024, 8)
+    with pytest.raises(ValueError, match="binarisation"):
+        AdaptiveScan(code, 1024, 8, binarisation="otsu")
+    with pytest.raises(ValueError, match="neighbour_tolerance"):
+        AdaptiveScan(code, 1024, 8, neighbour_tolerance=-1)
+    selfcal = AdaptiveScan(code, 1024, 8)
+    selfcal.start()
+    with pytest.raises(ValueError, match="expects 15 frames"):
+        selfcal.update(np.zeros((17, 8, 10), np.uint8))  # calibrated-mode frame count
+    scan = AdaptiveScan(code, 1024, 8, binarisation="calibrated")
     with pytest.raises(ValueError, match="start"):
         scan.update(np.zeros((17, 8, 10), np.uint8))
     scan.start()
@@ -201,13 +275,24 @@ def test_targets_on_small_gi_scene(label):
 
     _, CameraModel = _sim()
     scene = make_gi_scene(label, 128, 64, seed=0)
-    score, result = score_loop(scene, CameraModel(), EDC, rng=0)
+    score, result = score_loop(scene, CameraModel(), EDC, rng=0)  # default: self-calibrated
     assert score.single_errors > 50  # the scene really has errors to remove
-    assert score.rounds <= 3
-    pattern_frames = score.frames_total - score.calibration_frames
-    assert pattern_frames <= 45 and score.frames_total <= 45 + 4
+    assert score.rounds <= 3 and score.calibration_frames == 0
+    assert score.frames_total <= 45
     assert score.removed >= 0.8
     assert score.wrongly_invalidated < 0.01
+
+
+def test_neighbour_support_removes_unreached_false_passes():
+    from edge.edc.evaluate import make_gi_scene, score_loop
+
+    _, CameraModel = _sim()
+    scene = make_gi_scene("v-groove-30", 128, 64, seed=0)
+    before, _ = score_loop(scene, CameraModel(), EDC, rng=0, neighbour_tolerance=None)
+    after, _ = score_loop(scene, CameraModel(), EDC, rng=0)
+    assert before.errors_left_unreached > 0
+    assert after.errors_left_unreached <= before.errors_left_unreached // 2
+    assert after.wrongly_invalidated < 0.01
 
 
 def test_ensemble_vote():
@@ -220,11 +305,24 @@ def test_ensemble_vote():
 
 
 def test_maxminsw_is_a_gray_code_with_wide_stripes():
+    from edge.edc.maxminsw import cyclic_gray_walk, cyclic_min_gap
+
     code = maxminsw_code(10)
     assert code.family == "maxminsw" and code.size == 1024
-    assert verify_walk(code.messages, 10) >= 4
-    assert stripe_widths(code).min() >= 4 > stripe_widths(get_code("gray-10")).min()
+    # every column's word is unique, neighbours differ in one bit, also across the wrap-around
+    assert np.unique(code.messages).size == 1024
+    assert (np.bitwise_count((code.messages[1:] ^ code.messages[:-1]).astype(np.uint64)) == 1).all()
+    assert cyclic_min_gap(code.messages, 10) == 7
+    assert verify_walk(code.messages, 10) >= 7
+    assert stripe_widths(code).min() >= 7 > 2 == stripe_widths(get_code("xor04-10")).min()
+    assert stripe_widths(get_code("gray-10")).min() == 2
     assert (code.neighbour_distances() == 1).all()
+    # the 5-bit building block: min gap 4 exists, 5 does not (exhaustive)
+    assert cyclic_min_gap(cyclic_gray_walk(5, 4), 5) == 4 and cyclic_gray_walk(5, 5) is None
+    with pytest.raises(ValueError, match="reaches min run 7"):
+        maxminsw_code(10, 8)
+    with pytest.raises(ValueError, match="one bit"):
+        cyclic_min_gap(np.arange(1024), 10)
 
 
 def test_gupta_scheme_frames():

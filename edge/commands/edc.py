@@ -15,6 +15,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     r.add_argument("--rounds", type=int, default=3)
     r.add_argument("--size", default="256x192", help="camera WxH")
     r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--binarisation", choices=("self", "calibrated"), default="self",
+                   help="self: per-pixel min/max midpoint, no calibration frames; calibrated: white/black frames")
+    r.add_argument("--no-support", action="store_true", help="switch the neighbour support check off")
     r.set_defaults(func=_run)
     e = sub.add_parser("eval", help="write the error-map ROC and loop comparison report")
     e.add_argument("--out", type=Path, default=Path("docs/results/edc"))
@@ -40,12 +43,15 @@ def _run(args: argparse.Namespace) -> int:
     w, h = _size(args.size)
     scene = make_gi_scene(args.scene, w, h, args.seed)
     scheme = EnsembleScheme() if args.code == "gupta" else args.code
-    score, result = score_loop(scene, CameraModel(), scheme, rng=args.seed + 2, max_rounds=args.rounds)
+    opts = {"neighbour_tolerance": None} if args.no_support else {}
+    score, result = score_loop(scene, CameraModel(), scheme, rng=args.seed + 2, max_rounds=args.rounds,
+                               binarisation=args.binarisation, **opts)
     for r in result.rounds:
         print(f"round {r.round}: {r.frames} frames ({r.calibration_frames} calibration), checked {r.checked}, "
-              f"resolved {r.resolved}, failing {r.failing}, lit {r.lit_fraction:.3f}")
+              f"resolved {r.resolved}, failing {r.failing}, unsupported {r.unsupported}, lit {r.lit_fraction:.3f}")
     print(f"{score.scheme} on {args.scene}: {score.rounds} rounds, {score.frames_total} frames, stop: "
           f"{score.stop_reason}; single-pass errors {score.single_errors}, left {score.errors_left} "
+          f"({score.errors_left_unreached} unreached) "
           f"(removed {score.removed:.1%}); correct pixels invalidated {score.wrongly_invalidated:.2%}")
     return 0
 

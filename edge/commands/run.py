@@ -31,8 +31,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--connect", action="append", metavar="ENDPOINT", help="zenoh endpoint(s) to connect to")
     p.add_argument("--poses", type=int, default=0, metavar="K",
                    help="sim: pre-render K poses of the motion and cycle them (0 = render live)")
-    p.add_argument("--queue", type=int, default=2, metavar="N",
-                   help="stacks waiting for the decoder before the oldest is dropped (default 2)")
+    p.add_argument("--queue", type=int, default=1, metavar="N",
+                   help="stacks waiting for the decoder before the oldest is dropped (default 1: freshest)")
     p.add_argument("--bar", action="store_true", help="tqdm progress bar instead of one line per depth map")
     p.add_argument("--quiet", action="store_true", help="only the final summary")
     p.set_defaults(func=run)

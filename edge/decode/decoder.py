@@ -14,8 +14,13 @@ Methods (``method=``):
 
 ``metric="ml"`` (default) or ``"normalized"`` (the paper's plain normalised distance) selects the
 per-sample costs for the soft methods.  The valid mask is
-``contrast >= min_contrast & confidence >= min_confidence & column >= 0`` (plus what the
-spatial methods reject); see `DEFAULTS`.
+``eligible & (confidence >= min_confidence | (confidence >= t_low & supported))`` where
+``eligible = contrast >= min_contrast & column >= 0`` and ``supported`` means the column is
+within 1 of the median column of the eligible pixels with confidence >= t_high in the 5x5
+neighbourhood (at least 3 voters; `spatial.spatial_support`, columns unchanged).  Pass
+``spatial_check=False`` for the plain confidence + contrast mask.  "list" and "median" use the
+validity rules of `spatial.order_prior` / `spatial.confidence_median`.  Defaults: `DEFAULTS`
+(chosen on the real OpenCV Gray-code capture, see tests/test_decode_real.py).
 """
 
 from __future__ import annotations
@@ -28,7 +33,7 @@ import numpy as np
 from ..codes import Code
 from . import kernels
 from .inputs import Stack, validate
-from .spatial import confidence_median, order_prior
+from .spatial import confidence_median, order_prior, spatial_support
 from .tables import code_tables
 
 METHODS = ("hard", "soft", "list", "median", "list+median")
@@ -41,11 +46,12 @@ DEFAULTS = {
     "sigma_r": 0.01,
     "sigma_s": 0.03,
     # Valid mask: white - black (normalised) and (d2 - d1)/d2 thresholds.
-    "min_contrast": 0.04,
+    "min_contrast": 0.02,
     "min_confidence": 0.3,
-    # Spatial methods: confidence >= t_high votes / anchors; < t_low is replaced.
-    "t_low": 0.3,
-    "t_high": 0.6,
+    # Spatial checks: confidence >= t_high votes / anchors; below t_low a pixel is never
+    # accepted on spatial support alone (the median filter replaces it).
+    "t_low": 0.05,
+    "t_high": 0.3,
 }
 
 #: Quantisation steps per unit of per-sample cost (ML: chi-square units; normalised: x**2 units).
@@ -171,6 +177,7 @@ def decode(
     min_confidence: float = DEFAULTS["min_confidence"],
     t_low: float = DEFAULTS["t_low"],
     t_high: float = DEFAULTS["t_high"],
+    spatial_check: bool = True,
     columns: int | None = None,
     stripe: int = 1,
     bit_depth: int | None = None,
@@ -206,15 +213,17 @@ def decode(
         cand, dist, conf, st = search(stack, code, metric=METRICS[metric], sigma_r=sigma_r,
                                       sigma_s=sigma_s, columns=ncols, band=band, stripe=stripe)
     contrast = (stack.white.astype(np.float32) - stack.black.astype(np.float32)) * np.float32(stack.scale)
-    base_ok = (contrast >= min_contrast) & (cand[..., 0] >= 0)
-    column = cand[..., 0].copy()
+    eligible = (contrast >= min_contrast) & (cand[..., 0] >= 0)
     confidence = conf
-    valid = base_ok & (conf >= min_confidence)
     if method in ("list", "list+median"):
-        column, valid = order_prior(cand, confidence, base_ok, t_high=t_high, t_low=t_low)
+        column, valid = order_prior(cand, confidence, eligible, t_high=t_high, t_low=t_low)
+    else:
+        column = cand[..., 0].copy()
+        valid = eligible & (conf >= min_confidence)
+        if spatial_check:
+            valid |= eligible & (conf >= t_low) & spatial_support(column, conf, eligible, t_vote=t_high)
     if method in ("median", "list+median"):
-        column, valid = confidence_median(column, confidence, valid | (base_ok & (conf < min_confidence)),
-                                          t_low=t_low, t_high=t_high)
+        column, valid = confidence_median(column, confidence, eligible & (column >= 0), t_low=t_low, t_high=t_high)
     column = np.where(valid, column, -1).astype(np.int32)
     return Decoded(column=column, confidence=confidence, valid=column >= 0, candidates=cand,
                    distances=dist, stats=st)

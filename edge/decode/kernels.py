@@ -310,6 +310,45 @@ def soft_binary(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2,
                 evaluated += 1
                 if ref_col >= lo and ref_col <= hi:
                     k1 = (cost_ref << IDX_BITS) | ref_col
+                if has_leader and n > 0:
+                    # Chase-style seeds: flip the least reliable positions of h and decode,
+                    # so the third-best bound is tight before the enumeration starts.
+                    p1 = 0
+                    for i in range(n):
+                        if w[i] < w[p1]:
+                            p1 = i
+                    p2 = -1
+                    for i in range(n):
+                        if i != p1 and (p2 < 0 or w[i] < w[p2]):
+                            p2 = i
+                    p3 = -1
+                    for i in range(n):
+                        if i != p1 and i != p2 and (p3 < 0 or w[i] < w[p3]):
+                            p3 = i
+                    for trial in range(1, 8):
+                        f = _U0
+                        if trial & 1:
+                            f |= _U1 << np.uint64(p1)
+                        if (trial & 2) and p2 >= 0:
+                            f |= _U1 << np.uint64(p2)
+                        if (trial & 4) and p3 >= 0:
+                            f |= _U1 << np.uint64(p3)
+                        hh = h ^ f
+                        enc2 = masks[col_of_info[_pack(hh, comp_info, nbytes_info)]]
+                        c2 = hh ^ leader[_pack(hh ^ enc2, comp_syn, nbytes_syn)]
+                        d2 = c2 ^ cref
+                        if d2 == _U0:
+                            continue
+                        cost = cost_ref + _cost_of(d2, tab, ngroups)
+                        evaluated += 1
+                        if cost > (k3 >> IDX_BITS):
+                            continue
+                        col = col_of_info[_pack(c2, comp_info, nbytes_info)]
+                        if col < lo or col > hi:
+                            continue
+                        key = (cost << IDX_BITS) | col
+                        if key != k1 and key != k2 and key != k3:
+                            k1, k2, k3 = _insert(key, k1, k2, k3)
                 for t in range(1, n + 1):
                     if class_start[t] == class_start[t + 1]:
                         continue
@@ -331,7 +370,9 @@ def soft_binary(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2,
                             col = col_of_info[ref_info ^ diff_info[e]]
                             if col < lo or col > hi:
                                 continue
-                            k1, k2, k3 = _insert((cost << IDX_BITS) | col, k1, k2, k3)
+                            key = (cost << IDX_BITS) | col
+                            if key != k1 and key != k2 and key != k3:
+                                k1, k2, k3 = _insert(key, k1, k2, k3)
             _write(out_col, out_dist, out_conf, yy, xx, k1, k2, k3, dmin, q_scale)
         out_stats[yy, 0] = brute_pixels
         out_stats[yy, 1] = evaluated

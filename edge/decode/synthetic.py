@@ -44,7 +44,7 @@ def make_capture(
     ambient: float = 0.05,
     sigma_r: float = 0.01,
     sigma_s: float = 0.03,
-    dtype: type = np.float32,
+    dtype: type = np.uint8,
     inverse: bool = False,
 ) -> SyntheticCapture:
     """Capture of `code` where pixel (y, x) sees codebook row columns[y, x].

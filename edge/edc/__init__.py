@@ -2,11 +2,13 @@
 
 Public API::
 
-    AdaptiveScan(scheme, projector_width, height, *, stripe=1, max_rounds=3, ...)
+    AdaptiveScan(scheme, projector_width, height, *, stripe=1, max_rounds=3, binarisation="self",
+                 neighbour_tolerance=3, noise=(sigma_r, sigma_s), ...)
         .start() -> frames; .update(captured) -> RoundResult; .next_frames() -> frames | None; .result()
     run_adaptive(scene, camera, scheme, *, rng=0, stripe=1, max_rounds=3, ...) -> AdaptiveResult
     EdcScheme(code), EnsembleScheme(codes=None, min_agree=2), gupta_codes(k), ensemble_vote(columns)
-    maxminsw_code(k=10) -> Code (family "maxminsw")
+    maxminsw_code(k=10) -> Code (family "maxminsw"; k = 10: cyclic, every stripe >= 7 columns)
+    unmeasurable_columns(scheme) -> (size,) bool (constant words: never decoded when self-calibrated)
     lookup_columns(frames, white, black, code) -> column or -1 (the EDC check)
 """
 
@@ -14,9 +16,9 @@ from .adaptive import AdaptiveResult, AdaptiveScan, RoundResult, run_adaptive
 from .gupta import EnsembleScheme, ensemble_vote, gupta_codes
 from .lookup import lookup_columns
 from .maxminsw import maxminsw_code
-from .scheme import EdcScheme
+from .scheme import EdcScheme, unmeasurable_columns
 
 __all__ = [
     "AdaptiveResult", "AdaptiveScan", "EdcScheme", "EnsembleScheme", "RoundResult", "ensemble_vote",
-    "gupta_codes", "lookup_columns", "maxminsw_code", "run_adaptive",
+    "gupta_codes", "lookup_columns", "maxminsw_code", "run_adaptive", "unmeasurable_columns",
 ]

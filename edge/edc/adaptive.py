@@ -1,7 +1,7 @@
 """Adaptive structured light driven by an error map (paper section 4; Xu & Aliaga 2009; Gupta 2011).
 
-Round 1 projects the full pattern set plus a white (all on) and a black (all off) calibration
-frame; every camera pixel is decoded and checked.  Pixels that pass are FIXED (never decoded
+Round 1 projects the full pattern set (plus a white and a black frame in the calibrated
+binarisation mode, see below); every camera pixel is decoded and checked.  Pixels that pass are FIXED (never decoded
 again).  Each following round lights only the projector pixels that may still be the source of a
 failing camera pixel, re-captures, and decodes only the still-failing pixels.
 
@@ -26,16 +26,47 @@ Two refinements:
   only columns that some failing pixel of the row could see are lit.
 
 A pixel also fails a round if its decoded column was dark in that round (it cannot have received
-that code: free extra error detection), or if its white-minus-black contrast is below the shadow
-floor ``min_contrast`` (no projector light; the all-dark word is the codeword of column 0).
+that code: free extra error detection), if its contrast is under the shadow / noise floor (see
+"Binarisation"), or if no passing neighbour supports its column (see "Neighbour support").
 
-Calibration frames in rounds 2+
--------------------------------
-The binarisation threshold is ``(white + black) / 2``.  Switching columns off changes the indirect
-light every pixel receives, so round 1's white frame no longer describes the "on" level: each
-round r >= 2 captures ONE new calibration frame, the masked white (every lit projector pixel on).
-The black frame (projector off: ambient only) does not depend on the mask in a static scene, so
-round 1's black is reused.  Frames per round: n + 2, then n + 1 (17, 16, 16 for xor02-10+crc5).
+Binarisation: self-calibrated (default) or calibrated
+-----------------------------------------------------
+``binarisation="self"`` (default): no white or black frame is captured in any round.  Each
+camera pixel is binarised against the midpoint of its OWN extreme samples over the round's
+pattern frames, ``bit_i = frame_i > (max + min) / 2``.  This needs every codeword to contain a 0
+and a 1: the CRC-5 polynomial 0x15 has the factor x + 1, so every codeword of xor02-10+crc5 and
+gray-10+crc5 has even weight, hence at most 14 ones of 15 (no all-one word); the only word
+without a 1 is the all-zero codeword of column 0 (message 0).  Column 0 is therefore dark in every
+pattern frame and can never be decoded in this mode -- it is never claimed, and the pixels that see
+it are treated as shadow (`unmeasurable_columns` lists such columns for any scheme; for the Gupta
+ensemble it is also column 0).  Because the threshold is recomputed from each round's own frames,
+it follows the indirect light that masking removes, at no frame cost: a round costs exactly n
+frames (15, 15, 15 = 45 for three rounds of a 15-frame code).
+A pixel must also show a range ``max - min`` above the noise floor
+``min_range_sigmas * sigma(max)`` with ``sigma(v)**2 = sigma_r**2 + sigma_s**2 * v + 1/(12 L**2)``
+(the camera's read noise, shot-noise parameter and quantisation step, normalised; L = full
+scale).  The default 6 sigma: the range of 15 samples of pure noise exceeds 6 sigma with
+probability ~0.2% (5 sigma: 3%), while a real bit contrast of 6 sigma still binarises each bit with
+error ~Q(3) = 0.13% (and the CRC catches the rest).  Pixels under the floor in round 1 are shadow
+(never pending).  High-frequency codes help here: the indirect light a pixel outside the
+projector's reach receives is nearly the same in every frame, so its range stays under the floor.
+
+``binarisation="calibrated"``: round 1 adds a white (all on) and a black (all off) frame; the
+threshold is ``(white + black) / 2`` and the shadow floor is ``white - black > min_contrast``
+(fraction of full scale).  Switching columns off changes the indirect light every pixel receives,
+so round 1's white no longer describes the "on" level: each round r >= 2 captures ONE new
+calibration frame, the masked white (every lit projector pixel on); the black (ambient only) does
+not depend on the mask and is reused.  Frames per round: n + 2, then n + 1 (17, 16, 16 = 49).
+
+Neighbour support (false passes outside the projector's reach)
+--------------------------------------------------------------
+A camera pixel that the projector does not reach but that receives indirect light decodes a
+near-random word, which is a codeword with probability ~2**-(n-k) (1/32 for a CRC-5).  A passing
+pixel must therefore also be *supported*: some 8-neighbour has passed (in an earlier round or this
+one) with a column within ``neighbour_tolerance`` codewords of its own.  On a continuous surface
+neighbouring pixels see neighbouring projector columns; a chance codeword agrees with a neighbour
+with probability ~(2 tol + 1) / 2**k per passing neighbour.  An unsupported pixel fails this round
+(it is re-measured if rounds are left).  ``neighbour_tolerance=None`` switches the check off.
 
 Termination
 -----------
@@ -54,9 +85,13 @@ import numpy as np
 
 from edge.codes import Code
 
-from .scheme import EdcScheme
+from .scheme import EdcScheme, unmeasurable_columns
 
-DEFAULT_MIN_CONTRAST = 0.03  # shadow floor, fraction of full scale
+DEFAULT_MIN_CONTRAST = 0.03  # calibrated mode: shadow floor on white - black, fraction of full scale
+DEFAULT_MIN_RANGE_SIGMAS = 6.0  # self-calibrated mode: floor on max - min, in noise sigmas
+DEFAULT_NOISE = (0.002, 0.015)  # (sigma_r, sigma_s) normalised: the `edge.sim.CameraModel` defaults
+DEFAULT_NEIGHBOUR_TOLERANCE = 3  # codewords
+BINARISATIONS = ("self", "calibrated")
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,10 +101,12 @@ class RoundResult:
     Attributes:
         round: 1-based round index.
         frames: frames projected (and captured) this round, calibration included.
-        calibration_frames: how many of them were calibration frames (2 in round 1, then 1).
+        calibration_frames: how many of them were calibration frames (self-calibrated: 0;
+            calibrated: 2 in round 1, then 1).
         checked: camera pixels decoded this round (the still-failing ones).
         resolved: pixels that passed this round (now fixed).
         failing: pixels still failing after this round (shadow pixels excluded).
+        unsupported: pixels whose word was a lit codeword but that no passing neighbour supported.
         lit_fraction: fraction of projector pixels lit by this round's pattern frames.
         error_map: (H, W) bool, True where a pixel was checked this round and failed.
     """
@@ -80,6 +117,7 @@ class RoundResult:
     checked: int
     resolved: int
     failing: int
+    unsupported: int
     lit_fraction: float
     error_map: np.ndarray
 
@@ -127,13 +165,47 @@ def _as_scheme(scheme: Any) -> Any:
     return scheme
 
 
+def supported(column: np.ndarray, candidate: np.ndarray, tolerance: int) -> np.ndarray:
+    """(H, W) bool: candidate pixels whose column a passing neighbour supports.
+
+    column: (H, W) int, the columns of every passing pixel (fixed earlier or candidate now), -1
+    elsewhere; candidate: (H, W) bool, the pixels to test (their own entry in ``column`` is set).
+
+    Supported = some neighbour at dx = +-1 (6 pixels) has a column within ``tolerance``, or, when
+    none of those 6 has a column at all, the pixel above or below has one within ``tolerance``.
+    Vertical agreement alone is weak evidence: a systematic binarisation error along a vertical
+    edge (e.g. the border of a scattering region) repeats the same wrong column down the edge;
+    across the epipolar direction a surface's column changes smoothly.  It still counts for a
+    pixel with no decoded horizontal neighbour (a one-pixel-wide lit strip next to a shadow).
+    """
+    h, w = column.shape
+    pad = np.full((h + 2, w + 2), -1, dtype=np.int64)
+    pad[1:-1, 1:-1] = column
+    own = column.astype(np.int64)
+    near_h = np.zeros((h, w), dtype=bool)
+    any_h = np.zeros((h, w), dtype=bool)
+    near_v = np.zeros((h, w), dtype=bool)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            if dy == 0 and dx == 0:
+                continue
+            nb = pad[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+            near = (nb >= 0) & (np.abs(nb - own) <= tolerance)
+            if dx == 0:
+                near_v |= near
+            else:
+                near_h |= near
+                any_h |= nb >= 0
+    return candidate & (near_h | (~any_h & near_v))
+
+
 class AdaptiveScan:
     """Adaptive re-projection loop with an explicit, runtime-drivable API.
 
     Usage::
 
         scan = AdaptiveScan(get_code("xor02-10+crc5"), projector_width=1024, height=480)
-        frames = scan.start()                 # (n + 2, H, Wp) uint8: patterns, white, black
+        frames = scan.start()                 # (n, H, Wp) uint8 patterns (+ white, black if calibrated)
         while frames is not None:
             captured = camera.capture(frames)  # (len(frames), H, W)
             scan.update(captured)              # -> RoundResult
@@ -147,16 +219,26 @@ class AdaptiveScan:
         height: camera rows H (= projector rows: rectified pair).
         stripe: projector columns per codeword.
         max_rounds: round limit (>= 1).
-        min_contrast: shadow floor on (white - black) as a fraction of ``full_scale``.
+        binarisation: "self" (per-pixel midpoint of its own min and max sample, no calibration
+            frames) or "calibrated" (white and black frames); see the module docstring.
+        min_contrast: calibrated mode: shadow floor on (white - black) as a fraction of ``full_scale``.
+        min_range_sigmas: self-calibrated mode: floor on (max - min) in noise sigmas.
+        noise: self-calibrated mode: camera (sigma_r, sigma_s), normalised units (variance
+            ``sigma_r**2 + sigma_s**2 * v`` at normalised level v).
         full_scale: camera full-scale value (255 for 8 bits, 2**bits - 1 otherwise); default from the
             dtype of the first frames (uint8 -> 255, uint16 -> 65535, float -> 1).
         guard: keep lit the columns of passing pixels next to failing ones (see module docstring).
         disparity_band: optional (min_disparity, max_disparity) to light only candidate columns.
+        neighbour_tolerance: a passing pixel needs an 8-neighbour that passed with a column within
+            this many codewords (None: no neighbour check).
     """
 
     def __init__(self, scheme: Any, projector_width: int, height: int, *, stripe: int = 1, max_rounds: int = 3,
-                 min_contrast: float = DEFAULT_MIN_CONTRAST, full_scale: float | None = None, guard: bool = True,
-                 disparity_band: tuple[int, int] | None = None) -> None:
+                 binarisation: str = "self", min_contrast: float = DEFAULT_MIN_CONTRAST,
+                 min_range_sigmas: float = DEFAULT_MIN_RANGE_SIGMAS, noise: tuple[float, float] = DEFAULT_NOISE,
+                 full_scale: float | None = None, guard: bool = True,
+                 disparity_band: tuple[int, int] | None = None,
+                 neighbour_tolerance: int | None = DEFAULT_NEIGHBOUR_TOLERANCE) -> None:
         self.scheme = _as_scheme(scheme)
         if int(projector_width) != projector_width or projector_width < 1:
             raise ValueError(f"projector_width must be a positive integer, got {projector_width!r}")
@@ -166,27 +248,50 @@ class AdaptiveScan:
             raise ValueError(f"stripe must be a positive integer, got {stripe!r}")
         if isinstance(max_rounds, bool) or int(max_rounds) != max_rounds or max_rounds < 1:
             raise ValueError(f"round limit max_rounds must be an integer >= 1, got {max_rounds!r}")
+        if binarisation not in BINARISATIONS:
+            raise ValueError(f"binarisation must be one of {BINARISATIONS}, got {binarisation!r}")
         if not 0.0 <= float(min_contrast) < 1.0:
             raise ValueError(f"min_contrast must be in [0, 1), got {min_contrast!r}")
+        if not float(min_range_sigmas) >= 0.0:
+            raise ValueError(f"min_range_sigmas must be >= 0, got {min_range_sigmas!r}")
+        if len(noise) != 2 or not all(float(v) >= 0.0 for v in noise):
+            raise ValueError(f"noise must be (sigma_r, sigma_s) with both >= 0, got {noise!r}")
         if full_scale is not None and not float(full_scale) > 0:
             raise ValueError(f"full_scale must be > 0, got {full_scale!r}")
         if disparity_band is not None and (len(disparity_band) != 2 or disparity_band[0] > disparity_band[1]):
             raise ValueError(f"disparity_band must be (min, max) with min <= max, got {disparity_band!r}")
+        if neighbour_tolerance is not None and (int(neighbour_tolerance) != neighbour_tolerance
+                                                or neighbour_tolerance < 0):
+            raise ValueError(f"neighbour_tolerance must be None or an integer >= 0, got {neighbour_tolerance!r}")
         self.projector_width = int(projector_width)
         self.height = int(height)
         self.stripe = int(stripe)
         self.max_rounds = int(max_rounds)
+        self.binarisation = binarisation
         self.min_contrast = float(min_contrast)
+        self.min_range_sigmas = float(min_range_sigmas)
+        self.noise = (float(noise[0]), float(noise[1]))
         self.full_scale = None if full_scale is None else float(full_scale)
         self.guard = bool(guard)
         self.disparity_band = None if disparity_band is None else (int(disparity_band[0]), int(disparity_band[1]))
+        self.neighbour_tolerance = None if neighbour_tolerance is None else int(neighbour_tolerance)
         self.n_columns = min(-(-self.projector_width // self.stripe), max(c.size for c in self.scheme.codes))
         self._profiles = self.scheme.profiles(self.projector_width, self.stripe)
+        # columns a self-calibrated round cannot decode (constant word over the round's frames)
+        self.unmeasurable = (unmeasurable_columns(self.scheme)[: self.n_columns] if binarisation == "self"
+                             else np.zeros(self.n_columns, dtype=bool))
         self._started = False
+
+    @property
+    def self_calibrated(self) -> bool:
+        return self.binarisation == "self"
 
     # ------------------------------------------------------------------ state
     def start(self) -> np.ndarray:
-        """Reset the scan; return round 1's projector frames (n + 2, H, Wp) uint8: patterns, white, black."""
+        """Reset the scan; return round 1's projector frames (m, H, Wp) uint8.
+
+        Self-calibrated: the n pattern frames.  Calibrated: n patterns, white, black.
+        """
         self._started = True
         self._round = 0
         self._rounds: list[RoundResult] = []
@@ -194,8 +299,8 @@ class AdaptiveScan:
         self._camera_shape: tuple[int, int] | None = None
         self._column: np.ndarray | None = None
         self._lit = np.ones((self.height, self.projector_width), dtype=bool)
-        self._expect = self.scheme.n_frames + 2
-        return self._frames(self._lit, with_black=True)
+        self._expect = self.scheme.n_frames + (0 if self.self_calibrated else 2)
+        return self._frames(self._lit, first=True)
 
     @property
     def done(self) -> bool:
@@ -211,23 +316,31 @@ class AdaptiveScan:
         if not self._started:
             raise ValueError("adaptive scan not started: call start() first")
 
-    def _frames(self, lit: np.ndarray, *, with_black: bool) -> np.ndarray:
+    def _frames(self, lit: np.ndarray, *, first: bool) -> np.ndarray:
         n = self.scheme.n_frames
-        m = n + (2 if with_black else 1)
+        m = n if self.self_calibrated else n + (2 if first else 1)
         out = np.zeros((m, self.height, self.projector_width), dtype=np.uint8)
         on = lit.astype(np.uint8) * np.uint8(255)
         for i in range(n):
             out[i] = (self._profiles[i] > 0.5).astype(np.uint8)[None, :] * on
-        out[n] = on
+        if not self.self_calibrated:
+            out[n] = on  # white (masked in rounds >= 2); the black frame stays all zero
         return out
+
+    def noise_floor(self, level: np.ndarray) -> np.ndarray:
+        """Self-calibrated floor on max - min (normalised) at normalised level ``level``."""
+        sr, ss = self.noise
+        q = 1.0 / (12.0 * float(self.full_scale) ** 2) if self.full_scale and self.full_scale > 1.0 else 0.0
+        var = sr * sr + ss * ss * np.clip(level, 0.0, None) + q
+        return np.float32(self.min_range_sigmas) * np.sqrt(var).astype(np.float32)
 
     # ------------------------------------------------------------------ rounds
     def update(self, captured: np.ndarray, *, code: Code | str | None = None) -> RoundResult:
         """Decode the frames captured for the last frames handed out; fix the pixels that pass.
 
-        captured: (m, H, W) camera frames in the order they were projected (patterns, white
-        [, black in round 1]); uint8, uint16 or float.  code: optionally the code the frames were
-        captured with; a different code than this scan's raises ValueError.
+        captured: (m, H, W) camera frames in the order they were projected (patterns, then white
+        [, black in round 1] when calibrated); uint8, uint16 or float.  code: optionally the code
+        the frames were captured with; a different code than this scan's raises ValueError.
         """
         self._require_started()
         if self._stop is not None:
@@ -240,10 +353,11 @@ class AdaptiveScan:
         f = np.asarray(captured)
         if f.ndim != 3:
             raise ValueError(f"captured frames must be (m, H, W), got shape {f.shape}")
+        n = self.scheme.n_frames
         if f.shape[0] != self._expect:
             raise ValueError(
                 f"round {self._round + 1} of {self.scheme.name!r} expects {self._expect} frames "
-                f"({self.scheme.n_frames} patterns + {self._expect - self.scheme.n_frames} calibration), got {f.shape[0]}"
+                f"({n} patterns + {self._expect - n} calibration), got {f.shape[0]}"
             )
         if f.shape[1] != self.height:
             raise ValueError(f"captured frames must have {self.height} rows (projector rows), got {f.shape[1]}")
@@ -251,31 +365,47 @@ class AdaptiveScan:
             raise ValueError(f"captured frames must be {self._camera_shape} like round 1, got {f.shape[1:]}")
         if not (np.issubdtype(f.dtype, np.integer) or np.issubdtype(f.dtype, np.floating)):
             raise ValueError(f"captured frames must be integer or float, got dtype {f.dtype}")
-        n = self.scheme.n_frames
         self._round += 1
         first = self._round == 1
+        fs = None
         if first:
             self._camera_shape = f.shape[1:]
             if self.full_scale is None:
                 self.full_scale = float(np.iinfo(f.dtype).max) if np.issubdtype(f.dtype, np.integer) else 1.0
             h, w = self._camera_shape
-            self._black = f[n + 1].astype(np.float32)
             self._column = np.full((h, w), -1, dtype=np.int32)
             self._round_of = np.zeros((h, w), dtype=np.int8)
-            contrast = (f[n].astype(np.float32) - self._black) / np.float32(self.full_scale)
-            self._pending = contrast > self.min_contrast  # shadow pixels never become pending
-        white = f[n].astype(np.float32)
+            if self.self_calibrated:
+                self._pending = self._contrast_ok(f[:n].max(axis=0), f[:n].min(axis=0))
+            else:
+                self._black = f[n + 1].astype(np.float32)
+                self._pending = self._contrast_ok(f[n], self._black)  # shadow pixels never become pending
+        fs = np.float32(self.full_scale)
         ys, xs = np.nonzero(self._pending)
         pf = f[:n, ys, xs]
-        pw = white[ys, xs]
-        pb = self._black[ys, xs]
-        column, passed = self.scheme.decide(pf, pw, pb)
+        if self.self_calibrated:
+            hi = pf.max(axis=0).astype(np.float32) if ys.size else np.zeros(0, np.float32)
+            lo = pf.min(axis=0).astype(np.float32) if ys.size else np.zeros(0, np.float32)
+        else:
+            hi = f[n, ys, xs].astype(np.float32)
+            lo = self._black[ys, xs]
+        column, passed = self.scheme.decide(pf, hi, lo)
         column = column.astype(np.int32)
-        passed = passed & ((pw - pb) / np.float32(self.full_scale) > self.min_contrast)
+        passed = passed & self._contrast_ok(hi, lo)
         passed &= (column >= 0) & (column < self.n_columns)
-        safe = np.clip(column, 0, self.n_columns - 1) * self.stripe
-        passed &= self._lit[ys, np.minimum(safe, self.projector_width - 1)]
+        safe = np.clip(column, 0, self.n_columns - 1)
+        passed &= ~self.unmeasurable[safe]
+        passed &= self._lit[ys, np.minimum(safe * self.stripe, self.projector_width - 1)]
         h, w = self._camera_shape  # type: ignore[misc]
+        unsupported = 0
+        if self.neighbour_tolerance is not None:
+            cand = np.zeros((h, w), dtype=bool)
+            cand[ys[passed], xs[passed]] = True
+            both = self._column.copy()  # type: ignore[union-attr]
+            both[ys[passed], xs[passed]] = column[passed]
+            ok = supported(both, cand, self.neighbour_tolerance)[ys, xs]
+            unsupported = int((passed & ~ok).sum())
+            passed &= ok
         error_map = np.zeros((h, w), dtype=bool)
         error_map[ys[~passed], xs[~passed]] = True
         ry, rx = ys[passed], xs[passed]
@@ -286,7 +416,7 @@ class AdaptiveScan:
         result = RoundResult(
             round=self._round, frames=int(f.shape[0]), calibration_frames=int(f.shape[0] - n),
             checked=int(ys.size), resolved=int(ry.size), failing=int(self._pending.sum()),
-            lit_fraction=lit_fraction, error_map=error_map,
+            unsupported=unsupported, lit_fraction=lit_fraction, error_map=error_map,
         )
         self._rounds.append(result)
         # decide whether to go on, and with which mask
@@ -300,8 +430,17 @@ class AdaptiveScan:
             self._lit = self.next_mask()
             if not self._lit.any():
                 self._stop = "nothing to light"
-        self._expect = n + 1
+        self._expect = n + (0 if self.self_calibrated else 1)
         return result
+
+    def _contrast_ok(self, hi: np.ndarray, lo: np.ndarray) -> np.ndarray:
+        """Bool: the pixel's contrast (max - min, or white - black) is over the mode's floor."""
+        fs = np.float32(self.full_scale)
+        hi_n = np.asarray(hi, dtype=np.float32) / fs
+        contrast = hi_n - np.asarray(lo, dtype=np.float32) / fs
+        if self.self_calibrated:
+            return contrast > self.noise_floor(hi_n)
+        return contrast > self.min_contrast
 
     def next_mask(self) -> np.ndarray:
         """(H, Wp) bool projector pixels to light next round (rule: see the module docstring)."""
@@ -343,13 +482,13 @@ class AdaptiveScan:
         return lit
 
     def next_frames(self) -> np.ndarray | None:
-        """Projector frames (n + 1, H, Wp) uint8 of the next round (masked patterns, masked white), or None when done."""
+        """Projector frames of the next round (masked patterns [+ masked white if calibrated]), or None when done."""
         self._require_started()
         if not self._rounds:
             raise ValueError("no round decoded yet: project start()'s frames and call update() first")
         if self._stop is not None:
             return None
-        return self._frames(self._lit, with_black=False)
+        return self._frames(self._lit, first=False)
 
     def result(self) -> AdaptiveResult:
         """The column map, valid mask and per-round statistics so far."""
@@ -369,11 +508,13 @@ def run_adaptive(scene: Any, camera: Any, scheme: Any, *, rng: np.random.Generat
     Every frame (patterns and calibration, every round) is captured with `edge.sim.capture` at the
     per-frame exposure of a single pass of the scheme at fixed total exposure
     (``camera.frame_exposure(n_frames)``), with the global-illumination model of the scene, so
-    switching columns off removes their indirect light.  ``options`` go to `AdaptiveScan`.
+    switching columns off removes their indirect light.  ``options`` go to `AdaptiveScan`; the
+    self-calibrated noise floor uses the camera's ``(sigma_r, sigma_s)`` unless ``noise`` is given.
     """
     from edge.sim import capture
 
     gen = np.random.default_rng(rng) if not isinstance(rng, np.random.Generator) else rng
+    options.setdefault("noise", (float(camera.sigma_r), float(camera.sigma_s)))
     scan = AdaptiveScan(scheme, int(scene.geometry.projector_width), scene.height, stripe=stripe,
                         max_rounds=max_rounds, full_scale=float(camera.levels), **options)
     exposure = camera.frame_exposure(scan.scheme.n_frames)

@@ -101,13 +101,15 @@ class LoopScore:
     """Adaptive loop vs single pass on one scene."""
 
     scheme: str
+    binarisation: str
     rounds: int
     frames: list[int]
     frames_total: int
     calibration_frames: int
     stop_reason: str
-    single_errors: int       # wrong pixels a single pass reports valid
+    single_errors: int       # wrong pixels the reference single pass reports valid
     errors_left: int         # wrong pixels valid after the loop
+    errors_left_unreached: int  # ... of which the projector does not reach (indirect light only)
     removed: float           # 1 - errors_left / single_errors
     correct_single: int
     wrongly_invalidated: float  # fraction of the single pass's correct pixels left invalid
@@ -115,25 +117,28 @@ class LoopScore:
 
 
 def score_loop(scene: Any, camera: Any, scheme: Any, *, rng: Any = 0, max_rounds: int = 3,
-               min_contrast: float = DEFAULT_MIN_CONTRAST, **options: Any) -> tuple[LoopScore, AdaptiveResult]:
-    """Run the adaptive loop of ``scheme`` and compare with the single pass of the SAME scheme.
+               binarisation: str = "self", **options: Any) -> tuple[LoopScore, AdaptiveResult]:
+    """Run the adaptive loop of ``scheme`` and compare with the reference single pass of the SAME scheme.
 
-    The single pass is the loop's own first round decoded without any check: nearest codeword of
-    the first code for EDC schemes (`edge.decode.decode(method="hard")`), the ensemble's majority
-    column (ties: first code) for ensembles -- every pixel over the shadow floor is reported.
+    The reference single pass is the same whatever the loop's binarisation: one capture of the
+    scheme's patterns plus white and black, thresholds ``(white + black) / 2``, every pixel with
+    ``white - black > DEFAULT_MIN_CONTRAST`` reported, no check -- nearest codeword of the first
+    code for EDC schemes (`edge.decode.decode(method="hard")`), the ensemble's majority column
+    (ties: first code) for ensembles.  It is what a conventional sensor reports.
     """
     from edge.sim import capture
 
-    gen = np.random.default_rng(rng)
-    result = run_adaptive(scene, camera, scheme, rng=gen, max_rounds=max_rounds, min_contrast=min_contrast,
-                          **options)
-    # single pass: same scheme, fresh noise, no check
     from .adaptive import AdaptiveScan
 
-    scan = AdaptiveScan(scheme, int(scene.geometry.projector_width), scene.height, full_scale=float(camera.levels))
+    gen = np.random.default_rng(rng)
+    result = run_adaptive(scene, camera, scheme, rng=gen, max_rounds=max_rounds, binarisation=binarisation,
+                          **options)
+    # single pass: same scheme, fresh noise, no check
+    scan = AdaptiveScan(scheme, int(scene.geometry.projector_width), scene.height, full_scale=float(camera.levels),
+                        binarisation="calibrated")
     frames = scan.start()
     cap = capture(scene, frames, camera, rng=gen, exposure=camera.frame_exposure(scan.scheme.n_frames))
-    single = single_pass_columns(scan.scheme, cap, camera, min_contrast)
+    single = single_pass_columns(scan.scheme, cap, camera, DEFAULT_MIN_CONTRAST)
     truth = truth_columns(scene)
     single_valid = single >= 0
     single_wrong = single_valid & (single != truth)
@@ -141,9 +146,10 @@ def score_loop(scene: Any, camera: Any, scheme: Any, *, rng: Any = 0, max_rounds
     left = result.valid & (result.column != truth)
     n_single = int(single_wrong.sum())
     score = LoopScore(
-        scheme=scan.scheme.name, rounds=result.n_rounds, frames=result.frames_per_round,
+        scheme=scan.scheme.name, binarisation=binarisation, rounds=result.n_rounds, frames=result.frames_per_round,
         frames_total=result.frames_total, calibration_frames=sum(r.calibration_frames for r in result.rounds),
         stop_reason=result.stop_reason, single_errors=n_single, errors_left=int(left.sum()),
+        errors_left_unreached=int((left & (truth < 0)).sum()),
         removed=1.0 - float(left.sum()) / n_single if n_single else 1.0,
         correct_single=int(single_correct.sum()),
         wrongly_invalidated=float((single_correct & ~result.valid).sum() / max(1, single_correct.sum())),

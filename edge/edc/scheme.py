@@ -32,6 +32,19 @@ def code_profiles(code: Code, projector_width: int, stripe: int) -> np.ndarray:
     return out
 
 
+def unmeasurable_columns(scheme) -> np.ndarray:
+    """(size,) bool: columns whose word over all of the scheme's frames is constant (all 0 or all 1).
+
+    Binarising a pixel against the midpoint of its own extreme samples (self-calibrated mode)
+    always yields a word with a 0 and a 1, so these columns can never be decoded in that mode.
+    For xor02-10+crc5 and gray-10+crc5 it is column 0 alone (the all-zero codeword; CRC 0x15 has
+    the factor x + 1, so no codeword has odd weight and the all-one word of 15 bits is none).
+    """
+    words = np.concatenate([c.codebook for c in scheme.codes], axis=1)
+    ones = words.sum(axis=1)
+    return (ones == 0) | (ones == words.shape[1])
+
+
 class EdcScheme:
     """One systematic code with error-detecting redundancy (e.g. ``xor02-10+crc5``).
 

@@ -27,7 +27,9 @@ def run_adaptive(pipeline: Any, stack: Any, codes: np.ndarray, white: np.ndarray
     p = pipeline.profile
     h = codes.shape[1]
     scan = AdaptiveScan(pipeline.code, p.projector.width, h, stripe=pipeline.stripe,
-                        max_rounds=1 + int(p.edc.rounds), min_contrast=min(p.decoder.min_contrast, 0.999),
+                        max_rounds=1 + int(p.edc.rounds), binarisation="calibrated",
+                        min_contrast=min(p.decoder.min_contrast, 0.999),
+                        noise=(p.camera.sigma_r, p.camera.sigma_s),
                         full_scale=pipeline.full_scale,
                         disparity_band=(p.decoder.min_disparity, p.decoder.max_disparity))
     scan.start()

@@ -40,8 +40,8 @@ class ReplayReport:
     def lines(self) -> list[str]:
         out = [f"{self.path}: profile {self.profile!r}, {self.stacks_read} stacks read, "
                f"{self.stacks_compared} compared, {self.stacks_matched} bit-exact, "
-               f"{len(self.mismatches)} differ, {self.stacks_without_output} decoded without a recorded "
-               f"output, {self.stacks_incomplete} incomplete (dropped)"]
+               f"{len(self.mismatches)} differ, {self.stacks_without_output} complete without a recorded "
+               f"output (not decoded by the service), {self.stacks_incomplete} incomplete (dropped)"]
         out += [f"  mismatch: {m}" for m in self.mismatches[:20]]
         if self.problem:
             out.append(f"  problem: {self.problem}")
@@ -91,6 +91,10 @@ def replay_recording(path: str | os.PathLike[str], *, expected_profile: Any = No
             if stack is None:
                 assembler.flush()
                 continue
+            out = recorded.output
+            if out is None:  # the service dropped this stack (stale) or stopped before decoding it
+                report.stacks_without_output += 1
+                continue
 
             def recorded_masked(stack_id: int, edc_round: int, rows: np.ndarray) -> list[Frame]:
                 got = [f for f in masked if parse_projector_frame(f.projector_frame).edc_round == edc_round]
@@ -102,10 +106,6 @@ def replay_recording(path: str | os.PathLike[str], *, expected_profile: Any = No
             result = pipeline.process(stack, recorded_masked)
             if on_result is not None:
                 on_result(result)
-            out = recorded.output
-            if out is None:
-                report.stacks_without_output += 1
-                continue
             report.stacks_compared += 1
             problems = []
             if not np.array_equal(result.depth_mm, out.depth_mm):

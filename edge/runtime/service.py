@@ -31,6 +31,8 @@ from .stack_queue import Closed, LatestQueue
 
 #: Profile tables that may change while the service runs (applied between stacks).
 LIVE_TABLES = ("decoder", "edc", "geometry")
+#: The service stops when this many stacks in a row fail to decode (a persistent fault).
+MAX_CONSECUTIVE_DECODE_ERRORS = 10
 
 
 class ConfigRejected(ValueError):
@@ -57,7 +59,7 @@ class Service:
     """
 
     def __init__(self, profile, sensor: Sensor, *, sinks: Iterable[Any] = (), recorder: Any = None,
-                 queue_capacity: int = 2,
+                 queue_capacity: int = 1,
                  pipeline_factory: Callable[[Any], Any] = DepthPipeline) -> None:
         self.profile = profile
         self.sensor = sensor
@@ -154,6 +156,7 @@ class Service:
 
     def _decode_loop(self) -> None:
         masked = self._masked_capture()
+        failures = 0
         while True:
             try:
                 stack = self.queue.get(0.1)
@@ -170,7 +173,12 @@ class Service:
             except Exception as exc:
                 self.counters.decode_errors += 1
                 self.counters.last_error = f"decode: {type(exc).__name__}: {exc}"
+                failures += 1
+                if failures >= MAX_CONSECUTIVE_DECODE_ERRORS:  # a persistent fault: stop, do not spin
+                    self.counters.last_error += f" ({failures} stacks in a row failed; service stopped)"
+                    self._stop.set()
                 continue
+            failures = 0
             self.counters.stacks_decoded += 1
             self._deliver(result)
             if self._target_stacks is not None and self.counters.stacks_decoded >= self._target_stacks:

@@ -163,8 +163,8 @@ class SimSensor:
             raise ValueError(f"masked projector frames must be (m, [H,] {self.profile.projector.width}), "
                              f"got shape {frames_in.shape}")
         m, n = frames_in.shape[0], self.code.n
-        if m not in (n + 1, n + 2):
-            raise ValueError(f"expected {n + 1} or {n + 2} masked frames (patterns + white [+ black]), got {m}")
+        if m not in (n, n + 1, n + 2):
+            raise ValueError(f"expected {n}..{n + 2} masked frames (patterns [+ white [+ black]]), got {m}")
         rng = np.random.default_rng([int(self.profile.sim.seed), int(stack), 1000 + int(edc_round)])
         images = self._capture(self.scene(stack), frames_in, rng)
         now = time.time_ns()

@@ -1,0 +1,39 @@
+"""Zenoh sink of the service: depth, confidence and status through `edge.io.zenoh.DepthPublisher`.
+
+Config updates arriving on ``sl/<device>/config`` go to `Service.update_config` (validated; only
+the live tables may change; on any error the reply is ``config update rejected: <reason>`` and the
+running profile is kept).  The header ``sequence`` is the sink's depth-map counter (0, 1, 2...);
+``stack`` is the stack id, ``timestamp_ns`` the time of the stack's last camera frame.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .pipeline import DepthResult
+
+
+class ZenohSink:
+    """Publishes every `DepthResult` and status dict.  ``service`` may be None (replay --publish)."""
+
+    def __init__(self, profile, service: Any = None) -> None:
+        from edge.io.zenoh import DepthPublisher
+
+        on_update = service.update_config if service is not None else _reject_updates
+        self.publisher = DepthPublisher(profile, on_update=on_update)
+        self.sequence = 0
+
+    def on_result(self, result: DepthResult) -> None:
+        self.publisher.publish_depth(result.depth_mm, result.confidence, timestamp_ns=result.timestamp_ns,
+                                     sequence=self.sequence, stack=result.stack)
+        self.sequence += 1
+
+    def on_status(self, status: dict[str, Any]) -> None:
+        self.publisher.publish_status(status)
+
+    def close(self) -> None:
+        self.publisher.close()
+
+
+def _reject_updates(update: dict[str, Any]):
+    raise ValueError("this publisher replays a recording; its configuration cannot change")

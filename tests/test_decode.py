@@ -1,0 +1,292 @@
+"""Decoders: exactness against a brute-force reference, band, hard, order prior, median, inputs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from edge.codes import get_code
+from edge.decode import Decoded, confidence_median, decode, order_prior
+from edge.decode.decoder import Q_SCALE
+from edge.decode.kernels import METRIC_ML, METRIC_NORMALIZED
+from edge.decode.synthetic import make_capture
+
+SR, SS = 0.01, 0.03
+
+
+def reference_costs(frames, white, black, code, *, inverse=None, metric="ml", sr=SR, ss=SS):
+    """Brute force: (H, W, M) float64 distance of every codeword, written from the noise model."""
+    scale = 1 / 255 if frames.dtype == np.uint8 else 1.0
+    r = frames.astype(np.float64) * scale
+    a = white.astype(np.float64) * scale
+    b = black.astype(np.float64) * scale
+    va, vb = sr**2 + ss**2 * a, sr**2 + ss**2 * b
+    if metric == "ml":
+        if inverse is None:
+            m = np.minimum(np.log(va), np.log(vb))
+            e1 = (r - a) ** 2 / va + np.log(va) - m
+            e0 = (r - b) ** 2 / vb + np.log(vb) - m
+        else:
+            s = r - inverse.astype(np.float64) * scale
+            e1 = (s - (a - b)) ** 2 / (va + vb)
+            e0 = (s + (a - b)) ** 2 / (va + vb)
+    else:
+        x = (r - b) / (a - b)
+        e1, e0 = (x - 1) ** 2, x**2
+    cb = code.codebook.astype(np.float64)  # (M, n)
+    base = e0.sum(axis=0)  # all-zero word
+    return base[..., None] + np.einsum("nhw,mn->hwm", e1 - e0, cb)
+
+
+def check_exact(d: Decoded, costs: np.ndarray, tol: float) -> None:
+    """Decoder argmax and top-3 set equal the reference's, except within `tol` of a tie."""
+    # pixels with white <= black (or an empty band) are not decoded: candidates -1
+    decoded = d.candidates[..., 0] >= 0
+    assert decoded.mean() > 0.9
+    costs = costs[decoded]
+    d = Decoded(d.column[decoded], d.confidence[decoded], d.valid[decoded], d.candidates[decoded],
+                d.distances[decoded])
+    order = np.argsort(costs, axis=-1, kind="stable")
+    best = np.take_along_axis(costs, order[..., :1], -1)[..., 0]
+    got = d.candidates
+    got_cost = np.take_along_axis(costs, got, -1)
+    # argmax: same column, or a reference tie within quantisation tolerance
+    same = got[..., 0] == order[..., 0]
+    assert np.all(same | (got_cost[..., 0] - best <= tol)), "argmax differs from brute force"
+    assert same.mean() > 0.99
+    # top-3: the same set unless the 3rd and 4th reference costs are within tolerance
+    ref3 = np.sort(order[..., :3], -1)
+    got3 = np.sort(got, -1)
+    c3 = np.take_along_axis(costs, order[..., 2:3], -1)[..., 0]
+    c4 = np.take_along_axis(costs, order[..., 3:4], -1)[..., 0]
+    set_same = np.all(ref3 == got3, -1)
+    assert np.all(set_same | (c4 - c3 <= tol)), "top-3 set differs from brute force"
+    assert np.all(got_cost <= c3[..., None] + tol)
+    # reported distances are the reference distances (up to quantisation)
+    assert np.allclose(d.distances, got_cost, atol=tol, rtol=1e-4)
+
+
+@pytest.mark.parametrize("name,dtype,inverse", [
+    ("ecc-22-10", np.uint8, False), ("ecc-22-10", np.uint8, True), ("gray-10", np.uint8, False),
+])
+def test_soft_matches_brute_force(name, dtype, inverse):
+    code = get_code(name)
+    rng = np.random.default_rng(1)
+    h, w = 30, 40
+    cols = rng.integers(0, code.size, (h, w))
+    cap = make_capture(code, cols, rng=rng, albedo=rng.uniform(0.03, 0.6, (h, w)), sigma_s=0.06,
+                       dtype=dtype, inverse=inverse)
+    d = decode(cap.frames, cap.white, cap.black, code, inverse=cap.inverse, sigma_r=SR, sigma_s=SS)
+    costs = reference_costs(cap.frames, cap.white, cap.black, code, inverse=cap.inverse)
+    check_exact(d, costs, tol=code.n / Q_SCALE[METRIC_ML])
+    assert ((d.candidates[..., 0] >= 0) == (cap.white > cap.black)).all()
+    # confidence is (d2 - d1) / d2 of the reported distances
+    ok = d.candidates[..., 0] >= 0
+    d1, d2 = d.distances[..., 0][ok], d.distances[..., 1][ok]
+    assert np.allclose(d.confidence[ok], (d2 - d1) / d2, atol=1e-5)
+    assert ((d.confidence >= 0) & (d.confidence <= 1)).all()
+
+
+def test_normalized_metric_matches_brute_force():
+    code = get_code("ecc-22-10")
+    rng = np.random.default_rng(2)
+    cols = rng.integers(0, code.size, (20, 30))
+    cap = make_capture(code, cols, rng=rng, albedo=0.15, sigma_s=0.08)
+    d = decode(cap.frames, cap.white, cap.black, code, metric="normalized")
+    costs = reference_costs(cap.frames, cap.white, cap.black, code, metric="normalized")
+    check_exact(d, costs, tol=code.n / Q_SCALE[METRIC_NORMALIZED])
+
+
+def test_band_restricts_candidates_and_stays_exact():
+    code = get_code("ecc-22-10")
+    rng = np.random.default_rng(3)
+    h, w = 20, 300
+    x = np.arange(w)[None, :]
+    lo_d, hi_d = 10, 60
+    cols = np.clip(x - rng.integers(lo_d, hi_d + 1, (h, w)), 0, None)
+    cap = make_capture(code, cols, rng=rng, albedo=rng.uniform(0.02, 0.4, (h, w)), sigma_s=0.08)
+    d = decode(cap.frames, cap.white, cap.black, code, min_disparity=lo_d, max_disparity=hi_d)
+    costs = reference_costs(cap.frames, cap.white, cap.black, code)
+    cand_x = np.broadcast_to(x, (h, w))[..., None]
+    inband = (d.candidates >= cand_x - hi_d) & (d.candidates <= cand_x - lo_d)
+    assert np.all(inband | (d.candidates == -1))
+    # pixels with x < lo_d have no candidate at all
+    assert np.all(d.candidates[:, :lo_d] == -1) and not d.valid[:, :lo_d].any()
+    # exact within the band: mask out-of-band codewords in the reference
+    m = np.arange(code.size)[None, None, :]
+    out = (m < cand_x - hi_d) | (m > cand_x - lo_d)
+    ref = np.where(out, np.inf, costs)[:, 70:]
+    check_exact(Decoded(d.column[:, 70:], d.confidence[:, 70:], d.valid[:, 70:], d.candidates[:, 70:],
+                        d.distances[:, 70:]), ref, tol=code.n / Q_SCALE[METRIC_ML])
+    # a wide band (> brute-force limit) goes through the pruned enumeration and is exact too
+    d2 = decode(cap.frames, cap.white, cap.black, code, min_disparity=-400, max_disparity=hi_d)
+    lo = np.maximum(cand_x - hi_d, 0)
+    ref2 = np.where((m < lo) | (m > cand_x + 400), np.inf, costs)[:, 70:]
+    check_exact(Decoded(d2.column[:, 70:], d2.confidence[:, 70:], d2.valid[:, 70:], d2.candidates[:, 70:],
+                        d2.distances[:, 70:]), ref2, tol=code.n / Q_SCALE[METRIC_ML])
+
+
+def test_columns_limit_candidates():
+    code = get_code("gray-10")
+    rng = np.random.default_rng(4)
+    cols = rng.integers(0, 700, (10, 20))
+    cap = make_capture(code, cols, rng=rng, albedo=0.5)
+    d = decode(cap.frames, cap.white, cap.black, code, columns=700)
+    assert d.candidates.max() < 700
+    assert (d.column[d.valid] == cols[d.valid]).all()
+
+
+@pytest.mark.parametrize("name", ["ecc-22-10", "gray-10", "xor02-10"])
+def test_hard_corrects_up_to_t_errors(name):
+    code = get_code(name)
+    t = (code.d_min - 1) // 2
+    rng = np.random.default_rng(5)
+    h, w = 16, 64
+    cols = rng.integers(0, code.size, (h, w))
+    words = code.codebook[cols].astype(np.int64)  # (h, w, n)
+    for y in range(h):
+        for x in range(w):
+            flips = rng.choice(code.n, size=rng.integers(0, t + 1), replace=False)
+            words[y, x, flips] ^= 1
+    frames = (words.transpose(2, 0, 1) * 200 + 20).astype(np.uint8)
+    white = np.full((h, w), 220, np.uint8)
+    black = np.full((h, w), 20, np.uint8)
+    d = decode(frames, white, black, code, method="hard")
+    assert (d.candidates[..., 0] == cols).all()
+    assert (d.distances[..., 0] <= t).all()
+    # with inverse frames (equal variance for both bit values) soft ML = Hamming ML here
+    inverse = (255 - frames.astype(np.int64) - 15).clip(0, 255).astype(np.uint8)
+    assert (decode(frames, white, black, code, inverse=inverse).candidates[..., 0] == cols).all()
+
+
+def test_hard_and_soft_on_noisy_capture():
+    code = get_code("ecc-22-10")
+    rng = np.random.default_rng(6)
+    cols = rng.integers(0, code.size, (30, 40))
+    cap = make_capture(code, cols, rng=rng, albedo=0.04, sigma_s=0.05)
+    soft = decode(cap.frames, cap.white, cap.black, code).candidates[..., 0]
+    hard = decode(cap.frames, cap.white, cap.black, code, method="hard").candidates[..., 0]
+    assert (soft == cols).mean() >= (hard == cols).mean()
+
+
+def test_nary_code_brute_force():
+    from edge.codes import Code
+    rng = np.random.default_rng(7)
+    q, n, k = 4, 6, 3
+    digits = np.array(np.meshgrid(*[np.arange(q)] * k, indexing="ij")).reshape(k, -1).T
+    extra = (digits @ rng.integers(0, q, (k, n - k))) % q
+    code = Code(name="test-4ary", family="test", codebook=np.concatenate([digits, extra], 1), k=k, q=q)
+    cols = rng.integers(0, code.size, (12, 15))
+    cap = make_capture(code, cols, rng=rng, albedo=0.6, sigma_s=0.02)
+    d = decode(cap.frames, cap.white, cap.black, code)
+    assert (d.candidates[..., 0] == cols).mean() > 0.95
+    # brute-force reference of the N-ary ML costs
+    r = cap.frames.astype(np.float64)
+    a, b = cap.white.astype(np.float64), cap.black.astype(np.float64)
+    lev = b[None] + (a - b)[None] * (np.arange(q) / (q - 1))[:, None, None]  # (q, H, W)
+    var = SR**2 + SS**2 * lev
+    e = (r[:, None] - lev[None]) ** 2 / var[None] + np.log(var)[None]  # (n, q, H, W)
+    costs = np.zeros(cols.shape + (code.size,))
+    for j in range(code.size):
+        costs[..., j] = sum(e[i, code.codebook[j, i]] for i in range(n))
+    d = decode(cap.frames, cap.white, cap.black, code, sigma_r=SR, sigma_s=SS)
+    assert np.all(np.take_along_axis(costs, d.candidates[..., :1], -1)[..., 0] - costs.min(-1) <= n / 256)
+
+
+def test_order_prior_fixes_constructed_swap():
+    # one row: anchors at x=2 (col 100) and x=8 (col 110); x=5 decodes to 612 with low
+    # confidence, its second candidate 105 respects the order and must be chosen.
+    w = 11
+    cand = np.full((1, w, 3), -1, np.int32)
+    cand[0, :, 0] = np.arange(w) + 98
+    conf = np.full((1, w), 0.9, np.float32)
+    cand[0, 5] = [612, 105, 300]
+    conf[0, 5] = 0.1
+    cand[0, 6] = [40, 90, 20]  # no candidate between the anchors -> invalid
+    conf[0, 6] = 0.1
+    col, valid = order_prior(cand, conf, np.ones((1, w), bool), t_high=0.5, t_low=0.05)
+    assert col[0, 5] == 105 and valid[0, 5]
+    assert not valid[0, 6]
+    assert (col[0, :5] == cand[0, :5, 0]).all() and valid[0, :5].all()
+
+
+def test_median_filter_uses_only_high_confidence_votes():
+    h, w = 7, 7
+    col = np.full((h, w), 500, np.int32)
+    conf = np.full((h, w), 0.1, np.float32)  # low confidence everywhere ...
+    col[1:6, 1:6] = 900  # ... with a block of low-confidence 900s
+    hi = [(1, 1), (1, 5), (5, 1), (5, 5), (3, 1)]
+    for y, x in hi:  # ... except a few high-confidence 200s
+        col[y, x] = 200
+        conf[y, x] = 0.95
+    out, valid = confidence_median(col, conf, np.ones((h, w), bool), t_low=0.3, t_high=0.8)
+    # centre pixel: 24 neighbours, mostly 900, but only the five 200s vote
+    assert out[3, 3] == 200 and valid[3, 3]
+    for y, x in hi:
+        assert out[y, x] == 200
+    # a pixel with fewer than 3 high-confidence voters in its window stays low -> invalid
+    conf2 = np.full((h, w), 0.1, np.float32)
+    conf2[0, 0] = 0.95
+    out2, valid2 = confidence_median(col, conf2, np.ones((h, w), bool), t_low=0.3, t_high=0.8)
+    assert not valid2[3, 3] and valid2[0, 0]
+
+
+def test_methods_run_and_improve_or_keep_accuracy():
+    code = get_code("ecc-22-10")
+    rng = np.random.default_rng(8)
+    h, w = 40, 60
+    x = np.arange(w)[None, :]
+    cols = np.broadcast_to(x // 4 + 100, (h, w))  # a smooth slanted plane
+    cap = make_capture(code, cols, rng=rng, albedo=0.035, sigma_s=0.05)
+    res = {m: decode(cap.frames, cap.white, cap.black, code, method=m)
+           for m in ("soft", "list", "median", "list+median")}
+    raw = (np.abs(res["soft"].candidates[..., 0] - cols) <= 1).mean()
+    assert raw < 1.0  # the test is noisy enough to matter
+    for m, d in res.items():
+        assert d.column.dtype == np.int32 and d.valid.dtype == bool
+        assert ((d.column >= 0) == d.valid).all()
+        good = (np.abs(d.column - cols) <= 1) & d.valid
+        print(m, raw, good.sum() / d.valid.sum(), d.valid.mean())
+        assert good.sum() / d.valid.sum() >= raw  # valid pixels are more often right than raw ones
+        assert good.sum() >= 0.5 * raw * good.size
+
+
+def _good():
+    code = get_code("ecc-22-10")
+    fr = np.zeros((code.n, 4, 5), np.uint8)
+    return fr, np.full((4, 5), 200, np.uint8), np.full((4, 5), 10, np.uint8), code
+
+
+@pytest.mark.parametrize("case,match", [
+    ("count", "n=22 frames, got a stack of 21"),
+    ("shape", "white: expected shape"),
+    ("dtype", "expected dtype uint8, uint16, float32 or float64, got int32"),
+    ("nan", "NaN"),
+    ("negative", "non-negative"),
+    ("dark", "white brighter than black"),
+    ("mixed", "of one dtype"),
+    ("inverse", "inverse: expected shape"),
+    ("method", "method: expected one of"),
+])
+def test_bad_input(case, match):
+    fr, wh, bl, code = _good()
+    kw = {}
+    if case == "count":
+        fr = fr[:-1]
+    elif case == "shape":
+        wh = wh[:, :4]
+    elif case == "dtype":
+        fr, wh, bl = fr.astype(np.int32), wh.astype(np.int32), bl.astype(np.int32)
+    elif case in ("nan", "negative"):
+        fr, wh, bl = fr.astype(np.float32), wh.astype(np.float32) / 255, bl.astype(np.float32) / 255
+        fr[0, 0, 0] = np.nan if case == "nan" else -0.1
+    elif case == "dark":
+        wh, bl = bl, wh
+    elif case == "mixed":
+        wh = wh.astype(np.uint16)
+    elif case == "inverse":
+        kw["inverse"] = fr[:, :2]
+    elif case == "method":
+        kw["method"] = "bogus"
+    with pytest.raises(ValueError, match=match):
+        decode(fr, wh, bl, code, **kw)
