@@ -367,7 +367,6 @@ class AdaptiveScan:
             raise ValueError(f"captured frames must be integer or float, got dtype {f.dtype}")
         self._round += 1
         first = self._round == 1
-        fs = None
         if first:
             self._camera_shape = f.shape[1:]
             if self.full_scale is None:
@@ -380,7 +379,6 @@ class AdaptiveScan:
             else:
                 self._black = f[n + 1].astype(np.float32)
                 self._pending = self._contrast_ok(f[n], self._black)  # shadow pixels never become pending
-        fs = np.float32(self.full_scale)
         ys, xs = np.nonzero(self._pending)
         pf = f[:n, ys, xs]
         if self.self_calibrated:

@@ -129,6 +129,9 @@ def run_report(out_dir: Path, *, width: int = 256, height: int = 192, seed: int 
         "not reach but that receive indirect light, and systematic wrong columns along vertical edges.",
         "- Reference single pass (the 'single-pass errors' column) is the same for every mode: patterns + white + "
         "black, threshold (white + black)/2, no check, every pixel with white - black > 0.03 reported.",
+        f"- **max-min-SW Gray code** (`maxminsw-10`, Gupta ensemble): {mm.construction}; cyclic min gap 7, one short "
+        "of Goddyn & Gvozdjak's optimum 8 (the product of two 5-bit codes of min gap 4 cannot reach 8; see "
+        "`edge/edc/maxminsw.py`).",
         "- Targets: <= 3 rounds, <= 45 frames, >= 80% of single-pass errors removed, < 1% of correct pixels "
         "invalidated.",
     ]

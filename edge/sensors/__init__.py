@@ -39,9 +39,9 @@ def open_sensor(profile, backend: str | None = None, *, replay_path: str | None 
 
         return OakSensor(profile, **options)
     if backend == "event":
-        from .event import EventSensor
-
-        return EventSensor(profile, stacks=stacks, max_speed=max_speed, **options)
+        raise ValueError(
+            "sensor backend 'event' is not wired into the service yet (event SL runs offline through "
+            "edge.source.event_sl); expected one of sim, replay, oak")
     raise ValueError(f"unknown sensor backend {backend!r}; expected one of {', '.join(BACKENDS)}")
 
 
