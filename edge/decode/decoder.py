@@ -90,6 +90,12 @@ def _band_args(width: int, min_disparity: float | None, max_disparity: float | N
     return True, lo, hi
 
 
+def _band_columns(band: tuple[bool, int, int], stripe: int) -> int:
+    """Upper bound of the candidate columns per pixel of a disparity band."""
+    use_band, min_d, max_d = band
+    return (max_d - min_d) // stripe + 2 if use_band else 10**9
+
+
 def search(
     stack: Stack,
     code: Code,
@@ -100,35 +106,68 @@ def search(
     columns: int,
     band: tuple[bool, int, int],
     stripe: int,
+    path: str | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
-    """Exact top-3 search: (candidates (H,W,3) i32, distances (H,W,3) f32, confidence (H,W) f32, stats)."""
+    """Exact top-3 search: (candidates (H,W,3) i32, distances (H,W,3) f32, confidence (H,W) f32, stats).
+
+    path (binary codes; default chosen from the code and band): "band" (scan of a band of at
+    most `BAND_BRUTE_MAX` columns, any binary code), "lanes" (weight-class search over blocks of
+    `kernels.LANES` pixels, column-linear codes), "scalar" (per-pixel branch-and-bound or brute
+    force, any binary code; the reference the others are tested against).  All are exact.
+    """
     tb = code_tables(code)
     h, w = stack.shape
     cand = np.empty((h, w, 3), np.int32)
     dist = np.empty((h, w, 3), np.float32)
     conf = np.empty((h, w), np.float32)
     inv = stack.inverse if stack.inverse is not None else stack.frames[:1, :1, :1]
+    has_inv = stack.inverse is not None
     use_band, min_d, max_d = band
     q_scale = Q_SCALE[metric]
     sr2, ss2 = float(sigma_r) ** 2, float(sigma_s) ** 2
+    if code.q == 2 and path is None:
+        if use_band and _band_columns(band, stripe) <= BAND_BRUTE_MAX:
+            path = "band"
+        elif tb.column_linear:
+            path = "lanes"
+        else:
+            path = "scalar"
+    if path == "band" and not use_band:
+        raise ValueError("path: 'band' needs min_disparity / max_disparity")
+    if path == "lanes" and not tb.column_linear:
+        raise ValueError(f"path: 'lanes' needs a column-linear binary code, got {code.name!r}")
+    args = (stack.frames, inv, has_inv, stack.white, stack.black, stack.scale, metric, sr2, ss2, q_scale)
     t0 = time.perf_counter()
-    if code.q == 2:
+    if code.q != 2:
+        kernels.soft_nary(*args, code.q, tb.codebook, columns, use_band, min_d, max_d, stripe,
+                          cand, dist, conf)
+        st = {"path": "nary", "brute_pixels": h * w, "evaluated": -1}
+    elif path == "band":
+        stats = np.zeros((h, 2), np.int64)
+        kernels.soft_band(*args, tb.masks_t, columns, min_d, max_d, stripe, cand, dist, conf, stats)
+        st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
+    elif path == "lanes":
+        stats = np.zeros((h, 5), np.int64)
+        restricted = bool(use_band or columns < code.size)
+        kernels.soft_lanes(*args, tb.masks, tb.syn_col, tb.col_bit, tb.leader, tb.leader_col,
+                           tb.has_leader, tb.cls_weight, tb.cls_start, tb.cls_pstart, tb.dpos,
+                           tb.dcol, columns, use_band, min_d, max_d, stripe, restricted,
+                           cand, dist, conf, stats)
+        tot = stats.sum(axis=0)
+        st = {"path": path, "brute_pixels": 0, "evaluated": int(tot[1]),
+              "second_class_pixels": int(tot[0]), "second_class_blocks": int(tot[2]),
+              "blocks": int(tot[3]), "pending_blocks": int(tot[4])}
+    elif path == "scalar":
         stats = np.zeros((h, 2), np.int64)
         kernels.soft_binary(
-            stack.frames, inv, stack.inverse is not None, stack.white, stack.black, stack.scale,
-            metric, sr2, ss2, q_scale, tb.masks, tb.comp_info, tb.col_of_info, tb.comp_syn,
+            *args, tb.masks, tb.comp_info, tb.col_of_info, tb.comp_syn,
             tb.leader, tb.has_leader, tb.linear, tb.diff_masks, tb.diff_info, tb.class_start,
             tb.sub_start, tb.sub_p0, tb.class_sub, columns, use_band, min_d, max_d, stripe,
             BAND_BRUTE_MAX, cand, dist, conf, stats,
         )
-        st = {"brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
+        st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
     else:
-        kernels.soft_nary(
-            stack.frames, inv, stack.inverse is not None, stack.white, stack.black, stack.scale,
-            metric, sr2, ss2, q_scale, code.q, tb.codebook, columns, use_band, min_d, max_d,
-            stripe, cand, dist, conf,
-        )
-        st = {"brute_pixels": h * w, "evaluated": -1}
+        raise ValueError(f"path: expected 'band', 'lanes' or 'scalar', got {path!r}")
     st["seconds"] = time.perf_counter() - t0
     return cand, dist, conf, st
 
@@ -137,23 +176,18 @@ def _hard(stack: Stack, code: Code, columns: int, band: tuple[bool, int, int], s
     tb = code_tables(code)
     h, w = stack.shape
     if code.q == 2 and tb.linear and tb.has_leader:
-        col = np.empty((h, w), np.int32)
-        d1 = np.empty((h, w), np.int32)
+        cand = np.empty((h, w, 3), np.int32)
+        dist = np.empty((h, w, 3), np.float32)
+        conf = np.empty((h, w), np.float32)
         inv = stack.inverse if stack.inverse is not None else stack.frames[:1, :1, :1]
         use_band, min_d, max_d = band
-        kernels.hard_syndrome(
-            stack.frames, inv, stack.inverse is not None, stack.white, stack.black, stack.scale,
-            tb.masks, tb.comp_info, tb.col_of_info, tb.comp_syn, tb.leader, code.d_min, columns,
-            use_band, min_d, max_d, stripe, col, d1,
+        t0 = time.perf_counter()
+        kernels.hard_lean(
+            stack.frames, inv, stack.inverse is not None, stack.white, stack.black, tb.syn_col,
+            tb.info_bit, tb.leader_info, tb.leader_wt, tb.col_of_info, code.d_min, columns,
+            use_band, min_d, max_d, stripe, cand, dist, conf,
         )
-        dmin = code.d_min
-        conf = (np.maximum(dmin - 2 * d1, 0) / np.maximum(dmin - d1, 1)).astype(np.float32)
-        conf[col < 0] = 0
-        cand = np.full((h, w, 3), -1, np.int32)
-        cand[..., 0] = col
-        dist = np.full((h, w, 3), np.inf, np.float32)
-        dist[..., 0] = np.where(col >= 0, d1, np.inf)
-        return cand, dist, conf, {"path": "syndrome"}
+        return cand, dist, conf, {"path": "syndrome", "seconds": time.perf_counter() - t0}
     cand, dist, conf, st = search(stack, code, metric=kernels.METRIC_HARD, sigma_r=1.0, sigma_s=0.0,
                                   columns=columns, band=band, stripe=stripe)
     st["path"] = "hamming-search"

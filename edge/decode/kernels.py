@@ -493,3 +493,435 @@ def soft_nary(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q
                 if cost <= (k3 >> IDX_BITS):
                     k1, k2, k3 = _insert((cost << IDX_BITS) | j, k1, k2, k3)
             _write(out_col, out_dist, out_conf, yy, xx, k1, k2, k3, dmin, q_scale)
+
+
+# ---------------------------------------------------------------------------------------------
+# Lane-parallel kernels (the fast paths; see `soft_lanes`, `soft_band`, `hard_lean`).
+# ---------------------------------------------------------------------------------------------
+
+#: Pixels decoded together by `soft_lanes` (consecutive x of one row); a compile-time constant
+#: so that every loop over lanes has a fixed trip count and vectorises.
+LANES = 16
+#: Larger than any cost bound (an empty weight class).
+_NO_BOUND = np.int64(1) << np.int64(62)
+
+
+@njit(cache=True, inline="always")
+def _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, e_start, e_stop, p_start,
+                t, restricted):
+    """Top-3 update of LANES lanes with every codeword c_ref ^ D, D in dcol[e_start:e_stop].
+
+    D has weight t and positions dpos[p_start + (e - e_start) * t ...]; its cost in lane l is
+    base[l] + sum of V[pos * LANES + l]; its column colref[l] ^ dcol[e].  Keys are
+    (cost << IDX_BITS) | column; with `restricted`, columns outside [lo[l], hi[l]] are skipped.
+    """
+    p = p_start
+    for e in range(e_start, e_stop):
+        for l in range(LANES):
+            acc[l] = base[l]
+        for j in range(t):
+            row = dpos[p + j] * LANES
+            for l in range(LANES):
+                acc[l] += V[row + l]
+        p += t
+        md = dcol[e]
+        for l in range(LANES):
+            col = colref[l] ^ md
+            key = (np.int64(acc[l]) << IDX_BITS) | np.int64(col)
+            if restricted:
+                ok = (col >= lo[l]) & (col <= hi[l])
+                key = key if ok else NO_KEY
+            a = k1[l]
+            k1[l] = min(a, key)
+            key = max(a, key)
+            a = k2[l]
+            k2[l] = min(a, key)
+            key = max(a, key)
+            k3[l] = min(k3[l], key)
+
+
+@njit(cache=True, inline="always")
+def _class_bounds(V, SV, run, lb, n, cls_weight, nclass):
+    """lb[c * LANES + l] = min over classes c' >= c of (sum of the cls_weight[c'] smallest V of
+    lane l): a lower bound of cost - base for every codeword c_ref ^ D, |D| >= cls_weight[c].
+    lb[nclass * LANES + l] = _NO_BOUND.  Sorts each lane (odd-even transposition, lane-wise)."""
+    for i in range(n * LANES):
+        SV[i] = V[i]
+    for ps in range(n):
+        for i in range(ps & 1, n - 1, 2):
+            r0 = i * LANES
+            r1 = r0 + LANES
+            for l in range(LANES):
+                a = SV[r0 + l]
+                b = SV[r1 + l]
+                SV[r0 + l] = min(a, b)
+                SV[r1 + l] = max(a, b)
+    for l in range(LANES):
+        run[l] = 0
+        lb[nclass * LANES + l] = _NO_BOUND
+    c = 0
+    for t in range(1, n + 1):
+        r0 = (t - 1) * LANES
+        for l in range(LANES):
+            run[l] += SV[r0 + l]
+        if c < nclass and cls_weight[c] == t:
+            for l in range(LANES):
+                lb[c * LANES + l] = run[l]
+            c += 1
+    for c in range(nclass - 1, -1, -1):
+        for l in range(LANES):
+            lb[c * LANES + l] = min(lb[c * LANES + l], lb[(c + 1) * LANES + l])
+
+
+@njit(cache=True, inline="always")
+def _write_none(out_col, out_dist, out_conf, yy, xx):
+    for j in range(3):
+        out_col[yy, xx, j] = -1
+        out_dist[yy, xx, j] = np.inf
+    out_conf[yy, xx] = 0.0
+
+
+@njit(cache=True, inline="always")
+def _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, nlanes, c_first, nclass,
+                 cls_weight, cls_start, cls_pstart, dpos, dcol, restricted):
+    """Evaluate classes c_first, c_first + 1, ... for a whole lane block until the bound proves
+    the top-3 of lanes 0..nlanes-1; return the number of codeword evaluations per lane."""
+    evaluated = 0
+    c = c_first
+    while c < nclass:
+        if restricted:
+            _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, cls_start[c],
+                        cls_start[c + 1], cls_pstart[c], cls_weight[c], True)
+        else:
+            _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, cls_start[c],
+                        cls_start[c + 1], cls_pstart[c], cls_weight[c], False)
+        evaluated += cls_start[c + 1] - cls_start[c]
+        c += 1
+        done = True
+        for l in range(nlanes):
+            if (k3[l] >> IDX_BITS) >= base[l] + lb[c * LANES + l]:
+                done = False
+        if done:
+            break
+    return evaluated
+
+
+@njit(cache=True, parallel=True)
+def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
+               masks, syn_col, col_bit, leader, leader_col, has_leader,
+               cls_weight, cls_start, cls_pstart, dpos, dcol,
+               ncols, use_band, min_d, max_d, stripe, restricted,
+               out_col, out_dist, out_conf, out_stats):
+    """Exact top-3 soft decoding of a column-linear binary code, LANES pixels at a time.
+
+    Per pixel: y, h, w as in the module docstring; c_ref = nearest codeword of h (coset
+    leader e of the syndrome of h, else the re-encoded information bits), base = cost(c_ref),
+    V_i = +w_i where c_ref agrees with h, -w_i where not (stored V[i * LANES + lane]).  Every
+    other codeword is c_ref ^ D with cost base + sum_{i in D} V_i and column col(c_ref) ^ col(D).
+    Stage 1 evaluates D = 0 and the lightest weight class for the whole block; a lane is done
+    when its third-best cost is below base + (sum of the t smallest V) for every heavier class
+    weight t.  Unfinished lanes are moved into a pending block of the row; full (or, at the end
+    of the row, partial) pending blocks evaluate the next classes until every lane is done.
+    Ties go to the lower column (keys (cost << IDX_BITS) | column).
+
+    restricted: some columns are excluded (band or ncols < size): keys outside [lo, hi] of a
+    lane are dropped (the bound stays valid, so the result is exact within the candidates).
+    out_stats (H, 5) int64 per row: pixels that needed the second class, codeword evaluations,
+    stage-1 blocks with at least one such pixel, stage-1 blocks, pending blocks.
+    """
+    n, height, width = frames.shape
+    nclass = cls_weight.shape[0]
+    L = LANES
+    for yy in prange(height):
+        y = np.zeros(n, np.int64)
+        w = np.zeros(n, np.int64)
+        V = np.zeros(n * L, np.int32)
+        SV = np.zeros(n * L, np.int32)
+        lb = np.zeros((nclass + 1) * L, np.int64)
+        run = np.zeros(L, np.int64)
+        acc = np.zeros(L, np.int32)
+        base = np.zeros(L, np.int32)
+        colref = np.zeros(L, np.int32)
+        lo = np.zeros(L, np.int32)
+        hi = np.zeros(L, np.int32)
+        k1 = np.empty(L, np.int64)
+        k2 = np.empty(L, np.int64)
+        k3 = np.empty(L, np.int64)
+        dmin = np.zeros(L, np.float64)
+        active = np.zeros(L, np.bool_)
+        # pending block (lanes that need the heavier classes)
+        PV = np.zeros(n * L, np.int32)
+        Plb = np.zeros((nclass + 1) * L, np.int64)
+        Pbase = np.zeros(L, np.int32)
+        Pcolref = np.zeros(L, np.int32)
+        Plo = np.zeros(L, np.int32)
+        Phi = np.zeros(L, np.int32)
+        Pk1 = np.empty(L, np.int64)
+        Pk2 = np.empty(L, np.int64)
+        Pk3 = np.empty(L, np.int64)
+        Pdmin = np.zeros(L, np.float64)
+        Px = np.zeros(L, np.int64)
+        npend = 0
+        n_second = 0
+        evaluated = 0
+        blocks_second = 0
+        blocks = 0
+        pend_blocks = 0
+        for x0 in range(0, width, L):
+            blocks += 1
+            nact = 0
+            for l in range(L):
+                xx = x0 + l
+                act = False
+                a = 1.0
+                b = 0.0
+                if xx < width:
+                    a = white[yy, xx] * scale
+                    b = black[yy, xx] * scale
+                    llo, lhi = _band(xx, use_band, min_d, max_d, stripe, ncols)
+                    lo[l] = llo
+                    hi[l] = lhi
+                    act = (a > b) and (llo <= lhi)
+                active[l] = act
+                if not act:
+                    for i in range(n):
+                        V[i * L + l] = 0
+                    base[l] = 0
+                    colref[l] = 0
+                    dmin[l] = 0.0
+                    continue
+                nact += 1
+                hmask, dm = _pixel_llr(frames, inverse, has_inv, yy, xx, n, scale, a, b, metric,
+                                       sr2, ss2, q_scale, y, w)
+                dmin[l] = dm
+                syn = np.int64(0)
+                colh = np.int64(0)
+                for i in range(n):
+                    if y[i] > 0:
+                        syn ^= syn_col[i]
+                        colh ^= col_bit[i]
+                if has_leader:
+                    e = leader[syn]
+                    cr = colh ^ leader_col[syn]
+                else:
+                    e = hmask ^ masks[colh]
+                    cr = colh
+                colref[l] = np.int32(cr)
+                bs = np.int64(0)
+                for i in range(n):
+                    wi = w[i]
+                    if (e >> np.uint64(i)) & _U1:
+                        V[i * L + l] = np.int32(-wi)
+                        bs += wi
+                    else:
+                        V[i * L + l] = np.int32(wi)
+                base[l] = np.int32(bs)
+            if nact == 0:
+                for l in range(L):
+                    if x0 + l < width:
+                        _write_none(out_col, out_dist, out_conf, yy, x0 + l)
+                continue
+            for l in range(L):
+                cr = colref[l]
+                ok = (cr >= lo[l]) & (cr <= hi[l])
+                k1[l] = ((np.int64(base[l]) << IDX_BITS) | np.int64(cr)) if ok else NO_KEY
+                k2[l] = NO_KEY
+                k3[l] = NO_KEY
+            evaluated += nact
+            if nclass > 0:
+                if restricted:
+                    _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, cls_start[0],
+                                cls_start[1], cls_pstart[0], cls_weight[0], True)
+                else:
+                    _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, cls_start[0],
+                                cls_start[1], cls_pstart[0], cls_weight[0], False)
+                evaluated += nact * (cls_start[1] - cls_start[0])
+                _class_bounds(V, SV, run, lb, n, cls_weight, nclass)
+            else:
+                for l in range(L):
+                    lb[l] = _NO_BOUND
+            any_second = False
+            for l in range(L):
+                xx = x0 + l
+                if xx >= width:
+                    continue
+                if not active[l]:
+                    _write_none(out_col, out_dist, out_conf, yy, xx)
+                    continue
+                cidx = 1 if nclass > 0 else 0
+                if (k3[l] >> IDX_BITS) < base[l] + lb[cidx * L + l]:
+                    _write(out_col, out_dist, out_conf, yy, xx, k1[l], k2[l], k3[l], dmin[l], q_scale)
+                    continue
+                # move lane l into the pending block
+                any_second = True
+                n_second += 1
+                p = npend
+                for i in range(n):
+                    PV[i * L + p] = V[i * L + l]
+                for c in range(nclass + 1):
+                    Plb[c * L + p] = lb[c * L + l]
+                Pbase[p] = base[l]
+                Pcolref[p] = colref[l]
+                Plo[p] = lo[l]
+                Phi[p] = hi[l]
+                Pk1[p] = k1[l]
+                Pk2[p] = k2[l]
+                Pk3[p] = k3[l]
+                Pdmin[p] = dmin[l]
+                Px[p] = xx
+                npend += 1
+                if npend == L:
+                    evaluated += npend * _run_classes(PV, Plb, Pbase, Pcolref, Plo, Phi, Pk1, Pk2, Pk3,
+                                                      acc, npend, 1, nclass, cls_weight, cls_start,
+                                                      cls_pstart, dpos, dcol, restricted)
+                    for q in range(npend):
+                        _write(out_col, out_dist, out_conf, yy, Px[q], Pk1[q], Pk2[q], Pk3[q],
+                               Pdmin[q], q_scale)
+                    npend = 0
+                    pend_blocks += 1
+            if any_second:
+                blocks_second += 1
+        if npend > 0:
+            for p in range(npend, L):
+                for i in range(n):
+                    PV[i * L + p] = 0
+                Pbase[p] = 0
+                Pcolref[p] = 0
+            evaluated += npend * _run_classes(PV, Plb, Pbase, Pcolref, Plo, Phi, Pk1, Pk2, Pk3, acc,
+                                              npend, 1, nclass, cls_weight, cls_start, cls_pstart,
+                                              dpos, dcol, restricted)
+            for q in range(npend):
+                _write(out_col, out_dist, out_conf, yy, Px[q], Pk1[q], Pk2[q], Pk3[q], Pdmin[q],
+                       q_scale)
+            pend_blocks += 1
+        out_stats[yy, 0] = n_second
+        out_stats[yy, 1] = evaluated
+        out_stats[yy, 2] = blocks_second
+        out_stats[yy, 3] = blocks
+        out_stats[yy, 4] = pend_blocks
+
+
+@njit(cache=True, parallel=True)
+def soft_band(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, masks_t,
+              ncols, min_d, max_d, stripe, out_col, out_dist, out_conf, out_stats):
+    """Exact top-3 soft decoding of any binary code within a disparity band, by scanning the
+    band: cost(c) = C0 - sum_i (masks_t[i, c] & y_i) with C0 = sum_i max(y_i, 0) (the cost of
+    the all-zero word; masks_t is 0 / -1), a loop over contiguous candidate columns, then a
+    lane-wise top-3 network over LANES columns at a time.  out_stats (H, 2): decoded pixels,
+    candidate evaluations."""
+    n, height, width = frames.shape
+    L = LANES
+    for yy in prange(height):
+        y = np.zeros(n, np.int64)
+        w = np.zeros(n, np.int64)
+        acc = np.zeros(ncols + L, np.int32)
+        K1 = np.empty(L, np.int64)
+        K2 = np.empty(L, np.int64)
+        K3 = np.empty(L, np.int64)
+        pixels = 0
+        evaluated = 0
+        for xx in range(width):
+            a = white[yy, xx] * scale
+            b = black[yy, xx] * scale
+            lo, hi = _band(xx, True, min_d, max_d, stripe, ncols)
+            if not (a > b) or lo > hi:
+                _write_none(out_col, out_dist, out_conf, yy, xx)
+                continue
+            h, dmin = _pixel_llr(frames, inverse, has_inv, yy, xx, n, scale, a, b, metric,
+                                 sr2, ss2, q_scale, y, w)
+            c0 = np.int64(0)
+            for i in range(n):
+                if y[i] > 0:
+                    c0 += y[i]
+            nb = hi - lo + 1
+            pixels += 1
+            evaluated += nb
+            c0_32 = np.int32(c0)
+            for c in range(nb):
+                acc[c] = c0_32
+            for i in range(n):
+                yi = np.int32(y[i])
+                for c in range(nb):
+                    acc[c] -= masks_t[i, lo + c] & yi
+            for l in range(L):
+                K1[l] = NO_KEY
+                K2[l] = NO_KEY
+                K3[l] = NO_KEY
+            for cb in range(0, nb, L):
+                for l in range(L):
+                    c = cb + l
+                    key = (np.int64(acc[c]) << IDX_BITS) | np.int64(lo + c)
+                    key = key if c < nb else NO_KEY
+                    t = K1[l]
+                    K1[l] = min(t, key)
+                    key = max(t, key)
+                    t = K2[l]
+                    K2[l] = min(t, key)
+                    key = max(t, key)
+                    K3[l] = min(K3[l], key)
+            k1 = NO_KEY
+            k2 = NO_KEY
+            k3 = NO_KEY
+            for l in range(L):
+                if K1[l] < k3:
+                    k1, k2, k3 = _insert(K1[l], k1, k2, k3)
+                    if K2[l] < k3:
+                        k1, k2, k3 = _insert(K2[l], k1, k2, k3)
+                        if K3[l] < k3:
+                            k1, k2, k3 = _insert(K3[l], k1, k2, k3)
+            _write(out_col, out_dist, out_conf, yy, xx, k1, k2, k3, dmin, q_scale)
+        out_stats[yy, 0] = pixels
+        out_stats[yy, 1] = evaluated
+
+
+@njit(cache=True, parallel=True)
+def hard_lean(frames, inverse, has_inv, white, black, syn_col, info_bit, leader_info, leader_wt,
+              col_of_info, d_min, ncols, use_band, min_d, max_d, stripe, out_cand, out_dist,
+              out_conf):
+    """Hard decision + coset-leader decoding of a binary linear code, one image row at a time.
+
+    Bits r > (white + black)/2 (or r > r_inv); the syndrome and information bits of the word are
+    XORs of per-position contributions (loops over contiguous x); then per pixel the coset
+    leader's information bits and weight give the column and the Hamming distance d1.
+    Outputs: out_cand (H, W, 3) int32 [column, -1, -1] (-1 where white <= black or the column
+    is outside the projector / band), out_dist (H, W, 3) float32 [d1, inf, inf], out_conf (H, W)
+    float32 max(0, d_min - 2 d1) / max(1, d_min - d1) (0 where undecoded).
+    """
+    n, height, width = frames.shape
+    for yy in prange(height):
+        syn = np.zeros(width, np.int64)
+        inf = np.zeros(width, np.int64)
+        thr = np.empty(width, np.float64)
+        if not has_inv:
+            for xx in range(width):
+                thr[xx] = 0.5 * (np.float64(white[yy, xx]) + np.float64(black[yy, xx]))
+        for i in range(n):
+            sc = syn_col[i]
+            ib = info_bit[i]
+            if has_inv:
+                for xx in range(width):
+                    m = -np.int64(frames[i, yy, xx] > inverse[i, yy, xx])
+                    syn[xx] ^= sc & m
+                    inf[xx] ^= ib & m
+            else:
+                for xx in range(width):
+                    m = -np.int64(np.float64(frames[i, yy, xx]) > thr[xx])
+                    syn[xx] ^= sc & m
+                    inf[xx] ^= ib & m
+        for xx in range(width):
+            s = syn[xx]
+            col = col_of_info[inf[xx] ^ leader_info[s]]
+            d1 = leader_wt[s]
+            lo, hi = _band(xx, use_band, min_d, max_d, stripe, ncols)
+            if white[yy, xx] > black[yy, xx] and col >= lo and col <= hi:
+                out_cand[yy, xx, 0] = col
+                out_dist[yy, xx, 0] = np.float32(d1)
+                out_conf[yy, xx] = np.float32(max(d_min - 2 * d1, 0) / max(d_min - d1, 1))
+            else:
+                out_cand[yy, xx, 0] = -1
+                out_dist[yy, xx, 0] = np.inf
+                out_conf[yy, xx] = 0.0
+            out_cand[yy, xx, 1] = -1
+            out_cand[yy, xx, 2] = -1
+            out_dist[yy, xx, 1] = np.inf
+            out_dist[yy, xx, 2] = np.inf

@@ -1,90 +1,40 @@
 """Spatial post-processing of decoded columns (paper section 3.2.4).
 
-* `order_prior`: list decoding with the order prior.  Along each image row (an epipolar line in
-  the rectified setup) pixels with confidence >= t_high are anchors.  On a continuous surface
-  the projector column does not decrease from left to right, so a low-confidence pixel between
-  a left anchor L and a right anchor R (each at most `max_gap` pixels away, with
-  col(L) <= col(R)) takes the best of its top-3 candidates with col(L) <= c <= col(R); if none
-  fits it is invalid.  Pixels without such a bracket keep their best candidate if their
-  confidence is >= t_low.
-* `confidence_median`: 5x5 (`window`) median filter in which only high-confidence pixels
-  (>= t_high) vote.  A pixel below t_low takes the vote median; a pixel between t_low and
-  t_high keeps its column if it is within `tol` of the vote median, else takes the median;
-  pixels need at least `min_votes` votes, else low-confidence pixels become invalid.
+Disparity convention (docs/architecture.md): a pixel at camera column x decoded to codebook row c
+(projector columns ``c * stripe .. c * stripe + stripe - 1``) has disparity ``x - c * stripe``
+(projector pixels, stripe offset ignored).  Columns are codebook rows throughout.
+
+* `order_prior`: list decoding with the order prior, along each image row (an epipolar line in
+  the rectified setup).  *Anchors* are eligible pixels with confidence >= t_high whose disparity
+  agrees (within ``max_slope * gap + tol`` projector pixels) with the nearest other anchor on
+  its left or on its right at most `max_gap` pixels away; a high-confidence pixel that agrees
+  with neither is kept as it is but does not anchor.  A pixel with confidence < t_high whose
+  nearest anchors L (left) and R (right) are both at most `max_gap` pixels away and lie on one
+  continuous surface (their disparities agree within ``max_slope * (x_R - x_L) + tol``; this
+  implies col(L) <= col(R) when ``max_slope < 1``) takes the best-ranked of its top-3 candidates
+  c with ``col(L) <= c <= col(R)`` and ``|c - interp| <= tol / stripe``, where interp is the
+  linear interpolation of the anchor columns at x (exact for a plane: disparity is affine in
+  the image of a plane); if none of the three fits, it is invalid.  Every other pixel keeps
+  its best candidate; below t_low it is invalid.  High-confidence pixels never change.
+* `confidence_median`: median filter over a `window` x `window` patch in which only eligible
+  pixels with confidence >= t_high vote (the pixel itself excluded).  Votes are disparities
+  (``vote="disparity"``, the default: a surface slanted along the row has a constant column
+  step, so a column median would be biased where the voters are unevenly spread) or columns
+  (``vote="column"``).  A pixel with confidence < t_high and at least `min_votes` votes gets the
+  prediction ``p = x - median`` (rounded, in rows) or ``p = median``: it takes its
+  best-ranked candidate within `tol` rows of p (its own column when no `candidates` are given),
+  else p itself.  With fewer votes it keeps its column, valid iff confidence >= t_low.
+  High-confidence pixels never change.
 * `spatial_outliers`: the evaluation test for smooth scenes: a valid column differing by more
   than `tol` from the median of the valid columns in its `window` x `window` neighbourhood.
+* `spatial_support`: whether a pixel's column agrees with the median of its high-confidence
+  neighbours (used by `decode`'s valid mask; columns unchanged).
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit, prange
-
-
-@njit(cache=True, parallel=True)
-def _order_prior(cand, conf, ok, t_high, t_low, max_gap, out_col, out_valid):
-    height, width, _ = cand.shape
-    for yy in prange(height):
-        left_x = np.full(width, -1, np.int64)
-        right_x = np.full(width, -1, np.int64)
-        last = -1
-        for xx in range(width):
-            left_x[xx] = last
-            if ok[yy, xx] and conf[yy, xx] >= t_high:
-                last = xx
-        last = -1
-        for xx in range(width - 1, -1, -1):
-            right_x[xx] = last
-            if ok[yy, xx] and conf[yy, xx] >= t_high:
-                last = xx
-        for xx in range(width):
-            c0 = cand[yy, xx, 0]
-            out_col[yy, xx] = c0
-            if not ok[yy, xx]:
-                out_valid[yy, xx] = False
-                continue
-            if conf[yy, xx] >= t_high:
-                out_valid[yy, xx] = True
-                continue
-            lx = left_x[xx]
-            rx = right_x[xx]
-            if lx >= 0 and rx >= 0 and xx - lx <= max_gap and rx - xx <= max_gap:
-                cl = cand[yy, lx, 0]
-                cr = cand[yy, rx, 0]
-                if cl <= cr:
-                    chosen = -1
-                    for j in range(3):
-                        c = cand[yy, xx, j]
-                        if c >= 0 and cl <= c and c <= cr:
-                            chosen = c
-                            break
-                    out_col[yy, xx] = chosen
-                    out_valid[yy, xx] = chosen >= 0
-                    continue
-            out_valid[yy, xx] = conf[yy, xx] >= t_low
-
-
-def order_prior(
-    candidates: np.ndarray,
-    confidence: np.ndarray,
-    ok: np.ndarray,
-    *,
-    t_high: float,
-    t_low: float,
-    max_gap: int = 16,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Order-prior list decoding (see module docstring).
-
-    candidates: (H, W, 3) int32 best-first; confidence: (H, W) float32; ok: (H, W) bool pixels
-    eligible at all (contrast).  Returns column (H, W) int32 and valid (H, W) bool.
-    """
-    cand = np.ascontiguousarray(candidates, dtype=np.int32)
-    h, w, _ = cand.shape
-    col = np.empty((h, w), np.int32)
-    valid = np.empty((h, w), np.bool_)
-    _order_prior(cand, np.ascontiguousarray(confidence, np.float32), np.ascontiguousarray(ok, np.bool_),
-                 float(t_high), float(t_low), int(max_gap), col, valid)
-    return col, valid
 
 
 @njit(cache=True, inline="always")
@@ -101,11 +51,143 @@ def _median_sorted(buf, m):
     return (buf[m // 2 - 1] + buf[m // 2]) // 2
 
 
+@njit(cache=True, inline="always")
+def _median_float(buf, m):
+    for i in range(1, m):
+        t = buf[i]
+        j = i - 1
+        while j >= 0 and buf[j] > t:
+            buf[j + 1] = buf[j]
+            j -= 1
+        buf[j + 1] = t
+    if m % 2 == 1:
+        return buf[m // 2]
+    return 0.5 * (buf[m // 2 - 1] + buf[m // 2])
+
+
+@njit(cache=True, inline="always")
+def _same_surface(x1, c1, x2, c2, stripe, max_slope, tol):
+    d1 = x1 - c1 * stripe
+    d2 = x2 - c2 * stripe
+    return abs(d1 - d2) <= max_slope * abs(x2 - x1) + tol
+
+
 @njit(cache=True, parallel=True)
-def _conf_median(col, conf, eligible, t_low, t_high, radius, min_votes, tol, out_col, out_valid):
-    height, width = col.shape
+def _order_prior(cand, conf, ok, t_high, t_low, max_gap, max_slope, tol, stripe, out_col, out_valid):
+    height, width, k = cand.shape
     for yy in prange(height):
-        buf = np.empty((2 * radius + 1) ** 2, np.int64)
+        high = np.zeros(width, np.bool_)
+        anchor = np.zeros(width, np.bool_)
+        prev_high = np.full(width, -1, np.int64)
+        next_high = np.full(width, -1, np.int64)
+        for xx in range(width):
+            high[xx] = ok[yy, xx] and conf[yy, xx] >= t_high and cand[yy, xx, 0] >= 0
+        last = -1
+        for xx in range(width):
+            prev_high[xx] = last
+            if high[xx]:
+                last = xx
+        last = -1
+        for xx in range(width - 1, -1, -1):
+            next_high[xx] = last
+            if high[xx]:
+                last = xx
+        # anchors: high-confidence pixels that agree with a neighbouring high-confidence pixel
+        for xx in range(width):
+            if not high[xx]:
+                continue
+            c = cand[yy, xx, 0]
+            for x2 in (prev_high[xx], next_high[xx]):
+                if x2 >= 0 and abs(x2 - xx) <= max_gap and _same_surface(
+                        xx, c, x2, cand[yy, x2, 0], stripe, max_slope, tol):
+                    anchor[xx] = True
+                    break
+        left_x = np.full(width, -1, np.int64)
+        right_x = np.full(width, -1, np.int64)
+        last = -1
+        for xx in range(width):
+            left_x[xx] = last
+            if anchor[xx]:
+                last = xx
+        last = -1
+        for xx in range(width - 1, -1, -1):
+            right_x[xx] = last
+            if anchor[xx]:
+                last = xx
+        for xx in range(width):
+            c0 = cand[yy, xx, 0]
+            out_col[yy, xx] = c0
+            if not ok[yy, xx] or c0 < 0:
+                out_valid[yy, xx] = False
+                continue
+            if conf[yy, xx] >= t_high:
+                out_valid[yy, xx] = True
+                continue
+            lx = left_x[xx]
+            rx = right_x[xx]
+            if lx >= 0 and rx >= 0 and xx - lx <= max_gap and rx - xx <= max_gap:
+                cl = cand[yy, lx, 0]
+                cr = cand[yy, rx, 0]
+                if cl <= cr and _same_surface(lx, cl, rx, cr, stripe, max_slope, tol):
+                    interp = cl + (cr - cl) * (xx - lx) / (rx - lx)
+                    chosen = -1
+                    for j in range(k):
+                        c = cand[yy, xx, j]
+                        if c >= 0 and cl <= c and c <= cr and abs(c - interp) * stripe <= tol:
+                            chosen = c
+                            break
+                    out_valid[yy, xx] = chosen >= 0
+                    if chosen >= 0:
+                        out_col[yy, xx] = chosen
+                    continue
+            out_valid[yy, xx] = conf[yy, xx] >= t_low
+
+
+def order_prior(
+    candidates: np.ndarray,
+    confidence: np.ndarray,
+    ok: np.ndarray,
+    *,
+    t_high: float,
+    t_low: float,
+    max_gap: int = 16,
+    max_slope: float = 0.5,
+    tol: float = 2.0,
+    stripe: int = 1,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Order-prior list decoding (see module docstring).
+
+    candidates: (H, W, K) int32 codebook rows best-first (K >= 1, -1 = none); confidence: (H, W)
+    float32; ok: (H, W) bool pixels eligible at all (contrast).  max_gap: farthest anchor (camera
+    pixels); max_slope: largest disparity change per camera pixel on one surface; tol: slack in
+    projector pixels for the surface test and the interpolation.  Returns column (H, W) int32
+    (the best candidate where invalid) and valid (H, W) bool.
+    """
+    cand = np.asarray(candidates)
+    if cand.ndim != 3 or cand.shape[2] < 1:
+        raise ValueError(f"candidates: expected an (H, W, K) array, got shape {cand.shape}")
+    h, w, _ = cand.shape
+    for name, a in (("confidence", confidence), ("ok", ok)):
+        if np.shape(a) != (h, w):
+            raise ValueError(f"{name}: expected shape {(h, w)} to match candidates, got {np.shape(a)}")
+    if max_gap < 1 or max_slope < 0 or tol < 0 or stripe < 1:
+        raise ValueError(f"order_prior: expected max_gap >= 1, max_slope >= 0, tol >= 0, stripe >= 1, "
+                         f"got {max_gap}, {max_slope}, {tol}, {stripe}")
+    cand = np.ascontiguousarray(cand, dtype=np.int32)
+    col = np.empty((h, w), np.int32)
+    valid = np.empty((h, w), np.bool_)
+    _order_prior(cand, np.ascontiguousarray(confidence, np.float32), np.ascontiguousarray(ok, np.bool_),
+                 float(t_high), float(t_low), int(max_gap), float(max_slope), float(tol), int(stripe), col, valid)
+    return col, valid
+
+
+@njit(cache=True, parallel=True)
+def _conf_median(col, conf, eligible, cand, t_low, t_high, radius, min_votes, tol, by_disparity, stripe,
+                 out_col, out_valid):
+    height, width = col.shape
+    k = cand.shape[2]
+    for yy in prange(height):
+        buf = np.empty((2 * radius + 1) ** 2, np.float64)
         for xx in range(width):
             c = col[yy, xx]
             out_col[yy, xx] = c
@@ -125,18 +207,26 @@ def _conf_median(col, conf, eligible, t_low, t_high, radius, min_votes, tol, out
                     x2 = xx + dx
                     if x2 < 0 or x2 >= width or (dx == 0 and dy == 0):
                         continue
-                    if eligible[y2, x2] and conf[y2, x2] >= t_high and col[y2, x2] >= 0:
-                        buf[m] = col[y2, x2]
+                    c2 = col[y2, x2]
+                    if eligible[y2, x2] and conf[y2, x2] >= t_high and c2 >= 0:
+                        buf[m] = (x2 - c2 * stripe) if by_disparity else c2
                         m += 1
             if m < min_votes:
                 out_valid[yy, xx] = cf >= t_low and c >= 0
                 continue
-            med = _median_sorted(buf, m)
-            if cf >= t_low and c >= 0 and abs(c - med) <= tol:
-                out_valid[yy, xx] = True
-            else:
-                out_col[yy, xx] = med
-                out_valid[yy, xx] = True
+            med = _median_float(buf, m)
+            pred = np.int64(np.round((xx - med) / stripe)) if by_disparity else np.int64(np.round(med))
+            chosen = -1
+            if k > 0:
+                for j in range(k):
+                    cj = cand[yy, xx, j]
+                    if cj >= 0 and abs(cj - pred) <= tol:
+                        chosen = cj
+                        break
+            elif c >= 0 and abs(c - pred) <= tol:
+                chosen = c
+            out_col[yy, xx] = chosen if chosen >= 0 else pred
+            out_valid[yy, xx] = out_col[yy, xx] >= 0
 
 
 def confidence_median(
@@ -149,19 +239,38 @@ def confidence_median(
     window: int = 5,
     min_votes: int = 3,
     tol: int = 1,
+    candidates: np.ndarray | None = None,
+    vote: str = "disparity",
+    stripe: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Confidence-based median filter (see module docstring).
 
-    column: (H, W) int32 (-1 = none); confidence (H, W) float32; eligible (H, W) bool pixels that
-    may vote or be filled.  Returns column (H, W) int32 and valid (H, W) bool.
+    column: (H, W) int32 codebook rows (-1 = none); confidence (H, W) float32; eligible (H, W)
+    bool pixels that may vote or be filled; candidates: optional (H, W, K) int32 rows best-first.
+    Returns column (H, W) int32 and valid (H, W) bool.
     """
     if window < 1 or window % 2 == 0:
         raise ValueError(f"window: expected an odd size >= 1, got {window}")
+    if vote not in ("disparity", "column"):
+        raise ValueError(f"vote: expected 'disparity' or 'column', got {vote!r}")
+    if stripe < 1 or tol < 0 or min_votes < 1:
+        raise ValueError(f"confidence_median: expected stripe >= 1, tol >= 0, min_votes >= 1, got {stripe}, {tol}, {min_votes}")
     col = np.ascontiguousarray(column, dtype=np.int32)
+    h, w = col.shape
+    if candidates is None:
+        cand = np.full((1, 1, 0), -1, np.int32)
+    else:
+        cand = np.ascontiguousarray(candidates, dtype=np.int32)
+        if cand.ndim != 3 or cand.shape[:2] != (h, w):
+            raise ValueError(f"candidates: expected shape ({h}, {w}, K), got {cand.shape}")
+    for name, a in (("confidence", confidence), ("eligible", eligible)):
+        if np.shape(a) != (h, w):
+            raise ValueError(f"{name}: expected shape {(h, w)} to match column, got {np.shape(a)}")
     out_col = np.empty_like(col)
     out_valid = np.empty(col.shape, np.bool_)
-    _conf_median(col, np.ascontiguousarray(confidence, np.float32), np.ascontiguousarray(eligible, np.bool_),
-                 float(t_low), float(t_high), window // 2, int(min_votes), int(tol), out_col, out_valid)
+    _conf_median(col, np.ascontiguousarray(confidence, np.float32), np.ascontiguousarray(eligible, np.bool_), cand,
+                 float(t_low), float(t_high), window // 2, int(min_votes), int(tol), vote == "disparity", int(stripe),
+                 out_col, out_valid)
     return out_col, out_valid
 
 

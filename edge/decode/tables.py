@@ -9,12 +9,19 @@ hard-decision word in Hamming distance (for n - k <= `MAX_SYNDROME_BITS`).
 The soft decoder enumerates differences ``D`` (nonzero codewords of a linear code) sorted by
 Hamming weight and, inside a weight class, by their pattern on positions 0..5 (group 0), which
 is what its branch-and-bound prunes on.
+
+Lane-parallel search (`kernels.soft_lanes`, `kernels.hard_lean`).  For a *column-linear* code
+(``masks[i ^ j] == masks[i] ^ masks[j]``: the column index is itself a message, as for every
+built-in linear code) the column of ``c_ref xor D`` is ``col(c_ref) ^ col(D)``, and the hard
+decision ``h`` maps to a column and syndrome by XOR of per-position contributions
+(``col_bit``, ``syn_col``).  The nonzero codewords are grouped in weight classes
+(``cls_weight``), each D stored as its sorted positions (``dpos``) and column (``dcol``).
 """
 
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -47,6 +54,17 @@ class CodeTables:
         sub_start: (S + 1,) int64 starts of sublists sharing weight and group-0 pattern.
         sub_p0, sub_weight: (S,) int64 group-0 pattern and weight of each sublist.
         class_sub: (n + 2,) int64 first sublist of each weight class.
+        column_linear: linear and the column index is a message (see module docstring).
+        syn_col: (n,) int64 syndrome of the unit word e_i (the syndrome of h is the XOR of
+            syn_col over the set bits of h); info_bit: (n,) int64 information-set index bits of e_i.
+        col_bit: (n,) int64 column contribution of e_i (column-linear codes, else zeros).
+        leader_col, leader_info: (2**(n-k),) int64 column contribution / information bits of
+            each coset leader; leader_wt: (2**(n-k),) int32 leader weight (= Hamming distance).
+        cls_weight: (C,) int64 weights of the nonzero codewords, ascending; cls_start: (C + 1,)
+            int64 first codeword of each class in dcol; cls_pstart: (C,) int64 first position of
+            each class in dpos (class c holds (cls_start[c+1] - cls_start[c]) * cls_weight[c]).
+        dpos: int32 positions of every nonzero codeword (class by class); dcol: int32 columns.
+        masks_t: (n, size) int32 codebook transposed, -1 where the bit is 1, else 0 (band scan).
     """
 
     n: int
@@ -69,6 +87,19 @@ class CodeTables:
     sub_p0: np.ndarray
     sub_weight: np.ndarray
     class_sub: np.ndarray
+    column_linear: bool = False
+    syn_col: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    info_bit: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    col_bit: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    leader_col: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    leader_info: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    leader_wt: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    cls_weight: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    cls_start: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
+    cls_pstart: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    dpos: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    dcol: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    masks_t: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), np.int32))
 
     @property
     def has_info(self) -> bool:
@@ -239,12 +270,50 @@ def _tables_cached(code: Code) -> CodeTables:
         sub_p0 = p0[starts].astype(np.int64)
         sub_weight = weight[starts].astype(np.int64)
         class_sub = np.searchsorted(sub_weight, np.arange(n + 2)).astype(np.int64)
+    lanes = _lane_tables(cb, masks, linear, info, comp_info, comp_syn, col_of_info, leader, diff_masks)
     return CodeTables(
         n=n, k=k, q=2, size=size, d_min=code.d_min, codebook=cb, masks=masks, info=info,
         comp_info=comp_info, col_of_info=col_of_info, linear=linear, comp_syn=comp_syn,
         leader=leader, diff_masks=diff_masks, diff_info=diff_info, class_start=class_start,
-        sub_start=sub_start, sub_p0=sub_p0, sub_weight=sub_weight, class_sub=class_sub,
+        sub_start=sub_start, sub_p0=sub_p0, sub_weight=sub_weight, class_sub=class_sub, **lanes,
     )
+
+
+def _lane_tables(cb, masks, linear, info, comp_info, comp_syn, col_of_info, leader, diff_masks) -> dict:
+    """Fields of `CodeTables` used by the lane-parallel kernels (see module docstring)."""
+    size, n = cb.shape
+    out: dict = {"masks_t": np.ascontiguousarray(-cb.T.astype(np.int32))}
+    if not linear:
+        return out
+    size_bits = int(size).bit_length() - 1
+    idx = np.arange(size, dtype=np.int64)
+    acc = np.zeros(size, dtype=np.uint64)
+    for b in range(size_bits):
+        acc ^= np.where((idx >> b) & 1, masks[1 << b], np.uint64(0))
+    column_linear = bool(size == 1 << size_bits and np.array_equal(acc, masks))
+    units = np.left_shift(np.uint64(1), np.arange(n, dtype=np.uint64))
+    info_bit = _compress(units, comp_info)
+    syn_col = _compress(units ^ masks[col_of_info[info_bit]], comp_syn)
+    out.update(column_linear=column_linear, info_bit=info_bit, syn_col=syn_col)
+    if leader.size:
+        leader_info = _compress(leader, comp_info)
+        out.update(leader_info=leader_info, leader_wt=np.bitwise_count(leader).astype(np.int32))
+    if not column_linear:
+        return out
+    out["col_bit"] = col_of_info[info_bit].astype(np.int64)
+    if leader.size:
+        out["leader_col"] = col_of_info[out["leader_info"]].astype(np.int64)
+    weight = np.bitwise_count(diff_masks).astype(np.int64)  # diff_masks are sorted by weight
+    cls_weight, cls_count = np.unique(weight, return_counts=True)
+    bits = ((diff_masks[:, None] >> np.arange(n, dtype=np.uint64)) & np.uint64(1)).astype(bool)
+    out.update(
+        cls_weight=cls_weight.astype(np.int64),
+        cls_start=np.r_[0, np.cumsum(cls_count)].astype(np.int64),
+        cls_pstart=np.r_[0, np.cumsum(cls_count * cls_weight)[:-1]].astype(np.int64),
+        dpos=np.nonzero(bits)[1].astype(np.int32),
+        dcol=col_of_info[_compress(diff_masks, comp_info)].astype(np.int32),
+    )
+    return out
 
 
 def code_tables(code: Code) -> CodeTables:
