@@ -219,7 +219,7 @@ def test_median_filter_uses_only_high_confidence_votes():
     for y, x in hi:  # ... except a few high-confidence 200s
         col[y, x] = 200
         conf[y, x] = 0.95
-    out, valid = confidence_median(col, conf, np.ones((h, w), bool), t_low=0.3, t_high=0.8)
+    out, valid = confidence_median(col, conf, np.ones((h, w), bool), t_low=0.3, t_high=0.8, vote="column")
     # centre pixel: 24 neighbours, mostly 900, but only the five 200s vote
     assert out[3, 3] == 200 and valid[3, 3]
     for y, x in hi:
@@ -227,7 +227,7 @@ def test_median_filter_uses_only_high_confidence_votes():
     # a pixel with fewer than 3 high-confidence voters in its window stays low -> invalid
     conf2 = np.full((h, w), 0.1, np.float32)
     conf2[0, 0] = 0.95
-    out2, valid2 = confidence_median(col, conf2, np.ones((h, w), bool), t_low=0.3, t_high=0.8)
+    out2, valid2 = confidence_median(col, conf2, np.ones((h, w), bool), t_low=0.3, t_high=0.8, vote="column")
     assert not valid2[3, 3] and valid2[0, 0]
 
 
