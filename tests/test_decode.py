@@ -7,8 +7,10 @@ import pytest
 
 from edge.codes import get_code
 from edge.decode import Decoded, confidence_median, decode, order_prior
+from edge.decode import decoder
 from edge.decode.decoder import Q_SCALE
-from edge.decode.kernels import METRIC_ML, METRIC_NORMALIZED
+from edge.decode.inputs import validate
+from edge.decode.kernels import LANES, METRIC_ML, METRIC_NORMALIZED
 from edge.decode.synthetic import make_capture
 
 SR, SS = 0.01, 0.03
@@ -85,6 +87,61 @@ def test_soft_matches_brute_force(name, dtype, inverse):
     d1, d2 = d.distances[..., 0][ok], d.distances[..., 1][ok]
     assert np.allclose(d.confidence[ok], (d2 - d1) / d2, atol=1e-5)
     assert ((d.confidence >= 0) & (d.confidence <= 1)).all()
+
+
+@pytest.mark.parametrize("name,inverse", [("ecc-22-10", False), ("ecc-22-10", True), ("gray-10", False)])
+def test_fast_paths_equal_scalar_path(name, inverse):
+    """The lane-block search and the band scan return exactly what the per-pixel scalar
+    branch-and-bound returns (columns, distances, confidence), with a tail block (W not a
+    multiple of LANES), pixels with white <= black, restricted columns and bands."""
+    code = get_code(name)
+    rng = np.random.default_rng(11)
+    h, w = 6, 3 * LANES + 5
+    cols = rng.integers(0, code.size, (h, w))
+    cap = make_capture(code, cols, rng=rng, albedo=rng.uniform(0.0, 0.4, (h, w)), sigma_s=0.08,
+                       inverse=inverse)
+    white, black = cap.white.copy(), cap.black.copy()
+    dark = rng.random((h, w)) < 0.1
+    white[dark] = np.minimum(white, black)[dark] // rng.integers(1, 3, dark.sum()).astype(np.uint8)
+    st = validate(cap.frames, white, black, code, inverse=cap.inverse)
+    cases = [("lanes", (False, 0, 0), code.size), ("lanes", (False, 0, 0), 700),
+             ("lanes", (True, -300, 200), code.size), ("band", (True, 3, 90), code.size),
+             ("band", (True, -20, 40), 700)]
+    for path, band, ncols in cases:
+        kw = dict(metric=METRIC_ML, sigma_r=SR, sigma_s=SS, columns=ncols, band=band, stripe=1)
+        ref = decoder.search(st, code, path="scalar", **kw)
+        got = decoder.search(st, code, path=path, **kw)
+        assert got[3]["path"] == path
+        for a, b in zip(ref[:3], got[:3]):
+            np.testing.assert_array_equal(a, b, err_msg=f"{path} {band} {ncols}")
+        assert (got[0][dark] == -1).all()
+        if path == "lanes" and name == "ecc-22-10" and not band[0]:
+            assert got[3]["second_class_pixels"] > 0  # the pending (second-class) stage ran
+
+
+def test_hard_is_nearest_codeword():
+    code = get_code("ecc-22-10")
+    rng = np.random.default_rng(12)
+    h, w = 9, 37
+    words = rng.integers(0, 2, (h, w, code.n))
+    words[0] = code.codebook[rng.integers(0, code.size, w)]
+    frames = (words.transpose(2, 0, 1) * 180 + 30).astype(np.uint8)
+    white = np.full((h, w), 210, np.uint8)
+    black = np.full((h, w), 30, np.uint8)
+    black[1, :5] = 210  # white <= black: not decoded
+    ham = (words[..., None, :] != code.codebook[None, None]).sum(-1)  # (h, w, M)
+    d1 = ham.min(-1)
+    ok = white > black
+    inverse = (240 - frames.astype(np.int64)).astype(np.uint8)
+    for inv in (None, inverse):
+        d = decode(frames, white, black, code, method="hard", inverse=inv)
+        cand = d.candidates[..., 0]
+        assert (cand[~ok] == -1).all() and (d.confidence[~ok] == 0).all()
+        assert (np.take_along_axis(ham, np.maximum(cand, 0)[..., None], -1)[..., 0][ok] == d1[ok]).all()
+        assert (d.distances[..., 0][ok] == d1[ok]).all() and (d.candidates[..., 1:] == -1).all()
+        expect = np.maximum(code.d_min - 2 * d1, 0) / np.maximum(code.d_min - d1, 1)
+        assert np.allclose(d.confidence[ok], expect[ok])
+        assert (cand[0] == np.array([np.flatnonzero((code.codebook == wd).all(1))[0] for wd in words[0]])).all()
 
 
 def test_normalized_metric_matches_brute_force():

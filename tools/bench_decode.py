@@ -1,22 +1,36 @@
 """Benchmark of the decoders (issue 4): median frames/s against a brute-force numpy baseline.
 
-    python tools/bench_decode.py [--repeats 5] [--height 600 --width 700]
+    python tools/bench_decode.py [--repeats 5] [--height 600 --width 700] [--cold-compile]
 
 Input: a synthetic capture (edge.decode.synthetic) of ecc-22-10 at 600 x 700 with random true
 columns inside a 128-column disparity band, albedo uniform in [0.1, 0.8], ambient 0.05,
 sigma_r = 0.01, sigma_s = 0.03 (normalised units), uint8 frames.  Baseline: numpy float32
-chunked matmul of the per-sample cost differences against all 1024 codewords + argmax (top-1
-only).  Everything runs in one process; the first call of each kernel (numba compile or cache
-load) is timed separately.  Peak memory: ru_maxrss of the process.
+chunked matmul of the per-sample cost differences against all 1024 codewords + argmin (top-1
+only).  Everything runs in one process on the same input.
+
+Rows: "search" rows time the exact top-3 search alone (`edge.decode.decoder.search`, or the
+syndrome kernel for hard decoding): what issue 4 section 4 targets.  "decode()" rows time the
+public call, which adds the valid mask and, by default, the spatial support check
+(`edge.decode.spatial.spatial_support`).  Each row: median wall time over --repeats calls, the
+median process CPU time of the same calls (CPU / wall near 2 means both cores were ours; near 1
+means the machine was busy), frames/s and the ratio to the baseline.  The first call of each
+kernel (numba compile, or loading the on-disk cache) is timed separately ("first"); with
+--cold-compile a subprocess with an empty NUMBA_CACHE_DIR reports the true compile times.
+Peak memory: tracemalloc peak of one decode() call (numpy allocations) and ru_maxrss of the
+process (includes numba / LLVM).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import resource
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +39,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from edge.codes import get_code  # noqa: E402
 from edge.decode import decode  # noqa: E402
+from edge.decode import decoder  # noqa: E402
+from edge.decode.inputs import validate  # noqa: E402
+from edge.decode.kernels import METRIC_ML  # noqa: E402
 from edge.decode.synthetic import make_capture  # noqa: E402
 
 
@@ -48,15 +65,43 @@ def baseline_numpy(frames, white, black, code, sigma_r=0.01, sigma_s=0.03, chunk
 
 
 def timed(fn, repeats):
+    """(result, first-call seconds, median wall seconds, median CPU seconds)."""
     t0 = time.perf_counter()
     result = fn()
     first = time.perf_counter() - t0
-    times = []
+    wall, cpu = [], []
     for _ in range(repeats):
+        c0 = time.process_time()
         t0 = time.perf_counter()
         result = fn()
-        times.append(time.perf_counter() - t0)
-    return result, first, statistics.median(times)
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return result, first, statistics.median(wall), statistics.median(cpu)
+
+
+def make_input(h, w, band, seed):
+    code = get_code("ecc-22-10")
+    rng = np.random.default_rng(seed)
+    x = np.arange(w)[None, :]
+    cols = np.clip(x - rng.integers(0, band, (h, w)), 0, code.size - 1)
+    cap = make_capture(code, cols, rng=rng, albedo=rng.uniform(0.1, 0.8, (h, w)), ambient=0.05,
+                       sigma_r=0.01, sigma_s=0.03, dtype=np.uint8)
+    return code, cols, cap
+
+
+def cold_compile() -> int:
+    """Child process: first-call times with an empty numba cache (= compile times)."""
+    code, _, cap = make_input(8, 40, 16, 0)
+    fr, wh, bl = cap.frames, cap.white, cap.black
+    for name, kw in [("soft (lane search)", {}), ("soft band (band scan)", {"min_disparity": 0, "max_disparity": 15}),
+                     ("hard (syndrome)", {"method": "hard"})]:
+        t0 = time.perf_counter()
+        decode(fr, wh, bl, code, spatial_check=False, **kw)
+        print(f"    compile {name:<24} {time.perf_counter() - t0:6.1f} s", flush=True)
+    t0 = time.perf_counter()
+    decode(fr, wh, bl, code)
+    print(f"    compile {'spatial support':<24} {time.perf_counter() - t0:6.1f} s", flush=True)
+    return 0
 
 
 def main(argv=None) -> int:
@@ -66,44 +111,73 @@ def main(argv=None) -> int:
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--band", type=int, default=128)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--cold-compile", action="store_true",
+                   help="also measure compile times in a subprocess with an empty numba cache")
+    p.add_argument("--_child-compile", action="store_true", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
-    code = get_code("ecc-22-10")
-    rng = np.random.default_rng(args.seed)
+    if args._child_compile:
+        return cold_compile()
     h, w = args.height, args.width
-    x = np.arange(w)[None, :]
-    min_d = 0
-    max_d = args.band - 1
-    cols = np.clip(x - rng.integers(min_d, max_d + 1, (h, w)), 0, code.size - 1)
-    cap = make_capture(code, cols, rng=rng, albedo=rng.uniform(0.1, 0.8, (h, w)), ambient=0.05,
-                       sigma_r=0.01, sigma_s=0.03, dtype=np.uint8)
+    code, cols, cap = make_input(h, w, args.band, args.seed)
     fr, wh, bl = cap.frames, cap.white, cap.black
-    rows = []
+    min_d, max_d = 0, args.band - 1
+    print(f"ecc-22-10, {h} x {w} uint8, {args.repeats} repeats, load average at start "
+          f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}, {os.cpu_count()} CPUs", flush=True)
 
-    def report(name, result_cols, first, med, base_med=None):
+    def report(name, result_cols, first, med, cpu, base_med=None):
         acc = float((result_cols == cols).mean())
-        fps = 1.0 / med
         ratio = f"{base_med / med:6.1f}x" if base_med else "   1.0x"
-        rows.append(name)
-        print(f"{name:<38} first {first:7.2f} s   median {med * 1e3:8.1f} ms   {fps:7.1f} frames/s   "
-              f"{ratio} vs baseline   correct {acc:.4f}", flush=True)
+        print(f"{name:<44} first {first:6.2f} s  median {med * 1e3:7.1f} ms  cpu {cpu * 1e3:7.1f} ms  "
+              f"{1.0 / med:7.1f} frames/s {ratio}  correct {acc:.4f}", flush=True)
 
-    base, bfirst, bmed = timed(lambda: baseline_numpy(fr, wh, bl, code), max(1, min(3, args.repeats)))
-    report("baseline numpy matmul+argmax (top-1)", base, bfirst, bmed)
-    d, first, med = timed(lambda: decode(fr, wh, bl, code, method="soft"), args.repeats)
-    report("soft ML exact top-3 + confidence", d.candidates[..., 0], first, med, bmed)
-    print(f"    evaluated codewords / pixel: {d.stats['evaluated'] / (h * w):.1f}, "
-          f"brute-force pixels: {d.stats['brute_pixels']}", flush=True)
-    agree = float((d.candidates[..., 0] == base).mean())
-    print(f"    agreement with baseline argmax: {agree:.6f}")
-    d, first, med = timed(lambda: decode(fr, wh, bl, code, method="soft", min_disparity=min_d,
-                                         max_disparity=max_d), args.repeats)
-    report(f"soft ML top-3, {args.band}-column band", d.candidates[..., 0], first, med, bmed)
-    d, first, med = timed(lambda: decode(fr, wh, bl, code, method="hard"), args.repeats)
-    report("hard (syndrome table)", d.candidates[..., 0], first, med, bmed)
-    d, first, med = timed(lambda: decode(fr, wh, bl, code, method="list+median"), args.repeats)
-    report("soft + order prior + median", d.column, first, med, bmed)
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    print(f"peak memory (ru_maxrss): {peak:.0f} MiB")
+    base, bfirst, bmed, bcpu = timed(lambda: baseline_numpy(fr, wh, bl, code), max(1, min(3, args.repeats)))
+    report("baseline numpy matmul+argmin (top-1)", base, bfirst, bmed, bcpu)
+
+    st = validate(fr, wh, bl, code)
+    kw = dict(metric=METRIC_ML, sigma_r=decoder.DEFAULTS["sigma_r"], sigma_s=decoder.DEFAULTS["sigma_s"],
+              columns=code.size, stripe=1)
+    r, first, med, cpu = timed(lambda: decoder.search(st, code, band=(False, 0, 0), **kw), args.repeats)
+    report("search: soft exact top-3 + confidence", r[0][..., 0], first, med, cpu, bmed)
+    s = r[3]
+    print(f"    path {s['path']}: codewords evaluated / pixel {s['evaluated'] / (h * w):.1f}; pixels needing "
+          f"the 2nd weight class {s['second_class_pixels'] / (h * w):.4%}; lane blocks with such a pixel "
+          f"{s['second_class_blocks'] / max(s['blocks'], 1):.4%} of {s['blocks']}", flush=True)
+    print(f"    agreement with baseline argmin: {float((r[0][..., 0] == base).mean()):.6f}", flush=True)
+    r, first, med, cpu = timed(lambda: decoder.search(st, code, band=(True, min_d, max_d), **kw), args.repeats)
+    report(f"search: soft top-3, {args.band}-column band", r[0][..., 0], first, med, cpu, bmed)
+    print(f"    path {r[3]['path']}: candidates / pixel {r[3]['evaluated'] / (h * w):.1f}", flush=True)
+    r, first, med, cpu = timed(lambda: decoder._hard(st, code, code.size, (False, 0, 0), 1), args.repeats)
+    report("search: hard (syndrome table)", r[0][..., 0], first, med, cpu, bmed)
+
+    runs = [
+        ("decode(): soft", dict(method="soft")),
+        ("decode(): soft, spatial_check=False", dict(method="soft", spatial_check=False)),
+        (f"decode(): soft, band, spatial_check=False", dict(method="soft", spatial_check=False,
+                                                            min_disparity=min_d, max_disparity=max_d)),
+        ("decode(): hard, spatial_check=False", dict(method="hard", spatial_check=False)),
+        ("decode(): hard", dict(method="hard")),
+        ("decode(): list+median", dict(method="list+median")),
+    ]
+    for name, opts in runs:
+        d, first, med, cpu = timed(lambda: decode(fr, wh, bl, code, **opts), args.repeats)
+        report(name, d.candidates[..., 0] if opts["method"] != "list+median" else d.column, first, med, cpu, bmed)
+
+    tracemalloc.start()
+    decode(fr, wh, bl, code, method="soft")
+    peak_soft = tracemalloc.get_traced_memory()[1] / 2**20
+    tracemalloc.reset_peak()
+    decode(fr, wh, bl, code, method="soft", min_disparity=min_d, max_disparity=max_d)
+    peak_band = tracemalloc.get_traced_memory()[1] / 2**20
+    tracemalloc.stop()
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"peak memory: decode() soft {peak_soft:.0f} MiB, band {peak_band:.0f} MiB (tracemalloc, input "
+          f"{(fr.nbytes + wh.nbytes + bl.nbytes) / 2**20:.0f} MiB not included); process ru_maxrss {rss:.0f} MiB")
+    print(f"load average at end {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    if args.cold_compile:
+        with tempfile.TemporaryDirectory() as tmp:
+            env = dict(os.environ, NUMBA_CACHE_DIR=tmp)
+            print("first-call compile times (empty numba cache, subprocess):", flush=True)
+            subprocess.run([sys.executable, __file__, "--_child-compile"], env=env, check=True)
     return 0
 
 

@@ -19,15 +19,31 @@ import numpy as np
 
 from edge.codes import Code
 from edge.sim.render import Capture
-from edge.sim.sweep import SweepConfig, edge_decoder, run_sweep, write_report
+from edge.sim.sweep import DECODER_NAME, SweepConfig, edge_decoder, load_rows, read_findings, run_sweep, write_report
 
 
-def reference_decoder(cap: Capture, code: Code, method: str, band: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """Brute-force ML decoder over the disparity band: squared distance of normalised intensities
-    ("soft") or Hamming distance of thresholded symbols ("hard") to every candidate codeword."""
+def reference_decoder(cap: Capture, code: Code, method: str, band: tuple[int, int],
+                      levels: str = "calibration") -> tuple[np.ndarray, np.ndarray]:
+    """Brute-force decoder over the disparity band: squared distance of normalised intensities
+    ("soft") or Hamming distance of thresholded symbols ("hard") to every candidate codeword.
+    levels="refined": decode once, refit the levels with `edge.decode.levels`, decode again."""
     f = cap.frames.astype(np.float32)
+    white = cap.white.astype(np.float32)
     black = cap.black.astype(np.float32)
-    span = np.maximum(cap.white.astype(np.float32) - black, 1.0)
+    if levels == "refined":
+        from edge.decode.levels import initial_levels, refine_levels
+
+        scale = np.float32(1.0 / ((1 << cap.bits) - 1))
+        fn, wn, bn = initial_levels(f * scale, white * scale, black * scale)
+        col, _ = _brute(f * scale, wn, bn, code, method, band, cap.stripe, 1e-6)
+        wn, bn = refine_levels(f * scale, wn, bn, code, col)
+        return _brute(f * scale, wn, bn, code, method, band, cap.stripe, 1e-6)
+    return _brute(f, white, black, code, method, band, cap.stripe, 1.0)
+
+
+def _brute(f: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code, method: str, band: tuple[int, int],
+           stripe: int, min_span: float) -> tuple[np.ndarray, np.ndarray]:
+    span = np.maximum(white - black, min_span)
     r = (f - black[None]) / span[None]
     q = code.q
     if method == "hard":
@@ -38,7 +54,7 @@ def reference_decoder(cap: Capture, code: Code, method: str, band: tuple[int, in
     best = np.full((h, w), np.inf, np.float32)
     col = np.full((h, w), -1, np.int32)
     for d in range(band[0], band[1] + 1):
-        cand = (x - d) // cap.stripe
+        cand = (x - d) // stripe
         ok = (cand >= 0) & (cand < code.size) & (x - d >= 0)
         c = np.where(ok, cand, 0)
         t = templates[:, c]                                      # (n, W)
@@ -62,8 +78,27 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("docs/results/eval"))
     ap.add_argument("--decoder", choices=("edge", "reference"), default="edge")
     ap.add_argument("--experiments", default=None, help="comma-separated subset of experiments")
+    ap.add_argument("--report-only", action="store_true",
+                    help="rewrite README.md and plots from --out/results.json (e.g. after editing findings.md)")
+    ap.add_argument("--levels", choices=("refined", "calibration"), default="refined",
+                    help="decoder on/off levels: refitted from the code frames (default) or the calibration frames")
     args = ap.parse_args(argv)
+    if args.report_only:
+        import json
+
+        cfg, rows = load_rows(args.out / "results.json")
+        head = (args.out / "README.md").read_text().splitlines()[2] if (args.out / "README.md").exists() else ""
+        command = head.split("`")[1] if head.count("`") >= 2 else "python tools/eval_sweep.py"
+        seconds = float(json.loads((args.out / "results.json").read_text()).get("seconds", 0.0))
+        path = write_report(rows, args.out, cfg, command=command, decoder_name=DECODER_NAME, seconds=seconds,
+                            preamble=read_findings(args.out))
+        print(path)
+        return 0
     cfg = SweepConfig.quick() if args.quick else SweepConfig()
+    if args.levels != cfg.levels:
+        from dataclasses import replace
+
+        cfg = replace(cfg, levels=args.levels)
     if args.experiments:
         from dataclasses import replace
 
@@ -73,8 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = run_sweep(cfg, decoder)
     cmd = "python tools/eval_sweep.py " + " ".join(argv if argv is not None else sys.argv[1:])
     path = write_report(rows, args.out, cfg, command=cmd.strip(), decoder_name=(
-        "tools/eval_sweep.py reference brute-force decoder" if args.decoder == "reference" else "edge.decode.decode"),
-        seconds=time.perf_counter() - t0)
+        "tools/eval_sweep.py reference brute-force decoder" if args.decoder == "reference" else DECODER_NAME),
+        seconds=time.perf_counter() - t0, preamble=read_findings(args.out))
     print(path.read_text())
     return 0
 

@@ -29,6 +29,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--listen", action="append", metavar="ENDPOINT",
                    help="zenoh listen endpoint(s), overriding the profile (e.g. tcp/127.0.0.1:7450)")
     p.add_argument("--connect", action="append", metavar="ENDPOINT", help="zenoh endpoint(s) to connect to")
+    p.add_argument("--interference", action="store_true",
+                   help="event / light-curtain simulators: add an unsynchronised second device nearby")
     p.add_argument("--poses", type=int, default=0, metavar="K",
                    help="sim: pre-render K poses of the motion and cycle them (0 = render live)")
     p.add_argument("--queue", type=int, default=1, metavar="N",
@@ -80,7 +82,7 @@ def build_service(profile, args: argparse.Namespace, *, sinks: list[Any] | None 
     from edge.sensors import open_sensor
 
     sensor = open_sensor(profile, args.sensor, replay_path=args.replay, max_speed=args.max_speed,
-                         poses=args.poses)
+                         poses=args.poses, interference=getattr(args, "interference", False))
     if args.sensor == "replay" or (args.sensor is None and profile.sensor.backend == "replay"):
         profile = sensor.profile  # decode with the recorded profile
     sinks = list(sinks or [])
@@ -115,7 +117,11 @@ def run(args: argparse.Namespace) -> int:
     profile = load_run_profile(args)
     console = ConsoleSink(bar=args.bar, total=args.stacks, quiet=args.quiet)
     service = build_service(profile, args, sinks=[console])
-    print(f"edge run: profile {service.profile.name} ({service.profile.code.name}, "
+    from edge.runtime.pipeline import pipeline_kind
+
+    coding = " + ".join(x for x in (service.profile.code.name, service.profile.code.source and
+                                    f"source {service.profile.code.source}") if x) or "uncoded"
+    print(f"edge run: profile {service.profile.name} ({pipeline_kind(service.profile)}, {coding}, "
           f"{service.profile.camera.width}x{service.profile.camera.height} @ {service.profile.camera.rate_hz:g} fps, "
           f"{service.sensor.info.frames_per_stack} frames/stack), sensor {service.sensor.info.name}"
           + ("" if args.no_zenoh else f", zenoh {service.profile.zenoh.key('*')}")

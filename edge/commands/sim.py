@@ -25,18 +25,18 @@ def register(subparsers: Any) -> None:
 
 def record_simulation(out: str, profile, stacks: int, *, first_stack: int = 0, outputs: bool = True,
                       progress: bool = False) -> dict[str, Any]:
-    """Render ``stacks`` stacks with `SimSensor` (max speed) into ``out``; returns counts."""
-    from edge.io.mcap import Recorder
+    """Render ``stacks`` stacks with the profile's simulated sensor (max speed; `open_sensor` "sim":
+    columns, dots, curtain or event simulator) into ``out``; returns counts."""
     from edge.runtime.assembly import StackAssembler
-    from edge.runtime.pipeline import DepthPipeline
-    from edge.runtime.recording import frame_role
+    from edge.runtime.pipeline import make_pipeline
+    from edge.runtime.recording import EdgeRecorder, frame_role
+    from edge.sensors import open_sensor
     from edge.sensors.base import EndOfStream
-    from edge.sensors.sim import SimSensor
 
     if stacks < 1:
         raise ValueError(f"--stacks must be >= 1, got {stacks}")
-    sensor = SimSensor(profile, stacks=stacks, max_speed=True, first_stack=first_stack)
-    pipeline = DepthPipeline(profile) if outputs else None
+    sensor = open_sensor(profile, "sim", stacks=stacks, max_speed=True, first_stack=first_stack)
+    pipeline = make_pipeline(profile) if outputs else None
     assembler = StackAssembler(sensor.schedule)
     counts = {"frames": 0, "stacks": 0, "outputs": 0}
     bar = None
@@ -44,7 +44,7 @@ def record_simulation(out: str, profile, stacks: int, *, first_stack: int = 0, o
         from tqdm import tqdm
 
         bar = tqdm(total=stacks, unit="stack")
-    with Recorder(out, profile, sensor_metadata=sensor.info.metadata) as rec:
+    with EdgeRecorder(out, profile, sensor_metadata=sensor.info.metadata) as rec:
         sensor.start()
         try:
             while True:
@@ -54,7 +54,7 @@ def record_simulation(out: str, profile, stacks: int, *, first_stack: int = 0, o
                     break
                 if frame is None:
                     continue
-                rec.write_frame(frame, role=frame_role(frame.projector_frame))
+                rec.write_record(frame)
                 counts["frames"] += 1
                 stack = assembler.push(frame)
                 if stack is None:
@@ -63,7 +63,7 @@ def record_simulation(out: str, profile, stacks: int, *, first_stack: int = 0, o
                 if bar is not None:
                     bar.update(1)
                 if pipeline is not None:
-                    result = pipeline.process(stack, sensor.capture_masked)
+                    result = pipeline.process(stack, getattr(sensor, "capture_masked", None))
                     for extra in result.extra_frames:
                         rec.write_frame(extra, role=frame_role(extra.projector_frame))
                         counts["frames"] += 1

@@ -122,6 +122,14 @@ def _sample_costs(r, ri, a, b, has_inv, metric, va, vb, la, lb):
 
 
 @njit(cache=True, inline="always")
+def _quantise(e0, e1, q_scale):
+    """round(q_scale * (e0 - e1)) clipped to [-Y_CLIP, Y_CLIP], as int64 (clipped as a float)."""
+    t = np.round((e0 - e1) * q_scale)
+    t = min(max(t, -float(Y_CLIP)), float(Y_CLIP))
+    return np.int64(t)
+
+
+@njit(cache=True, inline="always")
 def _pixel_llr(frames, inverse, has_inv, yy, xx, n, scale, a, b, metric, sr2, ss2, q_scale, y, w):
     """Fill y (quantised e0 - e1) and w = |y| for one pixel; return (hard mask h, dmin)."""
     va = sr2 + ss2 * a
@@ -143,11 +151,7 @@ def _pixel_llr(frames, inverse, has_inv, yy, xx, n, scale, a, b, metric, sr2, ss
             ri = inverse[i, yy, xx] * scale
         e0, e1 = _sample_costs(r, ri, a, b, has_inv, metric, va, vb, la, lb)
         dmin += min(e0, e1)
-        t = np.int64(np.round((e0 - e1) * q_scale))
-        if t > Y_CLIP:
-            t = Y_CLIP
-        elif t < -Y_CLIP:
-            t = -Y_CLIP
+        t = _quantise(e0, e1, q_scale)
         y[i] = t
         if t > 0:
             h |= _U1 << np.uint64(i)
@@ -379,50 +383,6 @@ def soft_binary(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2,
 
 
 @njit(cache=True, parallel=True)
-def hard_syndrome(frames, inverse, has_inv, white, black, scale, masks, comp_info, col_of_info,
-                  comp_syn, leader, d_min, ncols, use_band, min_d, max_d, stripe,
-                  out_col, out_d1):
-    """Hard decision + coset-leader decoding of a binary linear code.
-
-    Binarises r > (white + black)/2 (or r > r_inv), decodes to the nearest codeword in Hamming
-    distance.  out_col (H, W) int32 (-1 where white <= black or the column is outside the
-    projector / band), out_d1 (H, W) int32 Hamming distance to the decoded codeword.
-    """
-    n, height, width = frames.shape
-    nbytes_info = comp_info.shape[0]
-    nbytes_syn = comp_syn.shape[0]
-    for yy in prange(height):
-        for xx in range(width):
-            a = white[yy, xx]
-            b = black[yy, xx]
-            if not (a > b):
-                out_col[yy, xx] = -1
-                out_d1[yy, xx] = n
-                continue
-            h = _U0
-            if has_inv:
-                for i in range(n):
-                    if frames[i, yy, xx] > inverse[i, yy, xx]:
-                        h |= _U1 << np.uint64(i)
-            else:
-                thr = 0.5 * (np.float64(a) + np.float64(b))
-                for i in range(n):
-                    if frames[i, yy, xx] > thr:
-                        h |= _U1 << np.uint64(i)
-            enc = masks[col_of_info[_pack(h, comp_info, nbytes_info)]]
-            e = leader[_pack(h ^ enc, comp_syn, nbytes_syn)]
-            c = h ^ e
-            col = col_of_info[_pack(c, comp_info, nbytes_info)]
-            lo, hi = _band(xx, use_band, min_d, max_d, stripe, ncols)
-            d1 = 0
-            while e:
-                e &= e - _U1
-                d1 += 1
-            out_d1[yy, xx] = d1
-            out_col[yy, xx] = col if (col >= lo and col <= hi) else -1
-
-
-@njit(cache=True, parallel=True)
 def soft_nary(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, q,
               codebook, ncols, use_band, min_d, max_d, stripe, out_col, out_dist, out_conf):
     """Exact top-3 over the codebook rows in the band for an N-ary code (q levels).
@@ -501,9 +461,80 @@ def soft_nary(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q
 
 #: Pixels decoded together by `soft_lanes` (consecutive x of one row); a compile-time constant
 #: so that every loop over lanes has a fixed trip count and vectorises.
-LANES = 16
+LANES = 32
 #: Larger than any cost bound (an empty weight class).
 _NO_BOUND = np.int64(1) << np.int64(62)
+
+
+@njit(cache=True, inline="always")
+def _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, yy, x0,
+               use_band, min_d, max_d, stripe, ncols, R, RI, PA, Y, dmin, active, lo, hi):
+    """Quantised cost differences of the LANES pixels x0.. of row yy, lane-parallel.
+
+    Fills Y (n, LANES) int32 (= `_pixel_llr`'s y, bit for bit), dmin, active (white > black,
+    inside the image, non-empty band [lo, hi]); inactive lanes get finite dummy values.
+    Scratch: R, RI (n, LANES) float64, PA (6, LANES) float64.  Returns the active lane count.
+    """
+    n, height, width = frames.shape
+    L = LANES
+    nact = 0
+    for l in range(L):
+        xx = x0 + l
+        act = False
+        a = 1.0
+        b = 0.0
+        if xx < width:
+            a = white[yy, xx] * scale
+            b = black[yy, xx] * scale
+            llo, lhi = _band(xx, use_band, min_d, max_d, stripe, ncols)
+            lo[l] = llo
+            hi[l] = lhi
+            act = (a > b) and (llo <= lhi)
+        if not act:
+            a = 1.0
+            b = 0.0
+        active[l] = act
+        nact += np.int64(act)
+        va = sr2 + ss2 * a
+        vb = sr2 + ss2 * b
+        la = 0.0
+        lb = 0.0
+        if metric == METRIC_ML and not has_inv:
+            la = np.log(va)
+            lb = np.log(vb)
+            m = min(la, lb)
+            la -= m
+            lb -= m
+        PA[0, l] = a
+        PA[1, l] = b
+        PA[2, l] = va
+        PA[3, l] = vb
+        PA[4, l] = la
+        PA[5, l] = lb
+        dmin[l] = 0.0
+    if x0 + L <= width:
+        for i in range(n):
+            row = frames[i, yy, x0:x0 + L]
+            for l in range(L):
+                R[i, l] = row[l] * scale
+            if has_inv:
+                rowi = inverse[i, yy, x0:x0 + L]
+                for l in range(L):
+                    RI[i, l] = rowi[l] * scale
+    else:
+        for i in range(n):
+            for l in range(L):
+                xx = min(x0 + l, width - 1)
+                R[i, l] = frames[i, yy, xx] * scale
+                if has_inv:
+                    RI[i, l] = inverse[i, yy, xx] * scale
+    for i in range(n):
+        for l in range(L):
+            e0, e1 = _sample_costs(R[i, l], RI[i, l], PA[0, l], PA[1, l], has_inv, metric,
+                                   PA[2, l], PA[3, l], PA[4, l], PA[5, l])
+            dmin[l] += min(e0, e1)
+            Y[i, l] = np.int32(_quantise(e0, e1, q_scale))
+    return nact
 
 
 @njit(cache=True, inline="always")
@@ -512,17 +543,34 @@ def _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, e_start, e
     """Top-3 update of LANES lanes with every codeword c_ref ^ D, D in dcol[e_start:e_stop].
 
     D has weight t and positions dpos[p_start + (e - e_start) * t ...]; its cost in lane l is
-    base[l] + sum of V[pos * LANES + l]; its column colref[l] ^ dcol[e].  Keys are
+    base[l] + sum of V[pos, l]; its column colref[l] ^ dcol[e].  Keys are
     (cost << IDX_BITS) | column; with `restricted`, columns outside [lo[l], hi[l]] are skipped.
     """
     p = p_start
+    t4 = t - t % 4
     for e in range(e_start, e_stop):
-        for l in range(LANES):
-            acc[l] = base[l]
-        for j in range(t):
-            row = dpos[p + j] * LANES
+        # sums of 4 rows per pass: straight-line loop bodies over the lanes vectorise
+        if t >= 4:
+            r0 = dpos[p]
+            r1 = dpos[p + 1]
+            r2 = dpos[p + 2]
+            r3 = dpos[p + 3]
             for l in range(LANES):
-                acc[l] += V[row + l]
+                acc[l] = base[l] + V[r0, l] + V[r1, l] + V[r2, l] + V[r3, l]
+        else:
+            for l in range(LANES):
+                acc[l] = base[l]
+        for j in range(4, t4, 4):
+            r0 = dpos[p + j]
+            r1 = dpos[p + j + 1]
+            r2 = dpos[p + j + 2]
+            r3 = dpos[p + j + 3]
+            for l in range(LANES):
+                acc[l] += V[r0, l] + V[r1, l] + V[r2, l] + V[r3, l]
+        for j in range(t4, t):
+            r0 = dpos[p + j]
+            for l in range(LANES):
+                acc[l] += V[r0, l]
         p += t
         md = dcol[e]
         for l in range(LANES):
@@ -542,35 +590,33 @@ def _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, e_start, e
 
 @njit(cache=True, inline="always")
 def _class_bounds(V, SV, run, lb, n, cls_weight, nclass):
-    """lb[c * LANES + l] = min over classes c' >= c of (sum of the cls_weight[c'] smallest V of
+    """lb[c, l] = min over classes c' >= c of (sum of the cls_weight[c'] smallest V of
     lane l): a lower bound of cost - base for every codeword c_ref ^ D, |D| >= cls_weight[c].
-    lb[nclass * LANES + l] = _NO_BOUND.  Sorts each lane (odd-even transposition, lane-wise)."""
-    for i in range(n * LANES):
-        SV[i] = V[i]
+    lb[nclass, l] = _NO_BOUND.  Sorts each lane (odd-even transposition, lane-wise)."""
+    for i in range(n):
+        for l in range(LANES):
+            SV[i, l] = V[i, l]
     for ps in range(n):
         for i in range(ps & 1, n - 1, 2):
-            r0 = i * LANES
-            r1 = r0 + LANES
             for l in range(LANES):
-                a = SV[r0 + l]
-                b = SV[r1 + l]
-                SV[r0 + l] = min(a, b)
-                SV[r1 + l] = max(a, b)
+                a = SV[i, l]
+                b = SV[i + 1, l]
+                SV[i, l] = min(a, b)
+                SV[i + 1, l] = max(a, b)
     for l in range(LANES):
         run[l] = 0
-        lb[nclass * LANES + l] = _NO_BOUND
+        lb[nclass, l] = _NO_BOUND
     c = 0
     for t in range(1, n + 1):
-        r0 = (t - 1) * LANES
         for l in range(LANES):
-            run[l] += SV[r0 + l]
+            run[l] += SV[t - 1, l]
         if c < nclass and cls_weight[c] == t:
             for l in range(LANES):
-                lb[c * LANES + l] = run[l]
+                lb[c, l] = run[l]
             c += 1
     for c in range(nclass - 1, -1, -1):
         for l in range(LANES):
-            lb[c * LANES + l] = min(lb[c * LANES + l], lb[(c + 1) * LANES + l])
+            lb[c, l] = min(lb[c, l], lb[c + 1, l])
 
 
 @njit(cache=True, inline="always")
@@ -581,14 +627,15 @@ def _write_none(out_col, out_dist, out_conf, yy, xx):
     out_conf[yy, xx] = 0.0
 
 
-@njit(cache=True, inline="always")
-def _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, nlanes, c_first, nclass,
+@njit(cache=True)
+def _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, nlanes, c_first, c_stop, nclass,
                  cls_weight, cls_start, cls_pstart, dpos, dcol, restricted):
-    """Evaluate classes c_first, c_first + 1, ... for a whole lane block until the bound proves
-    the top-3 of lanes 0..nlanes-1; return the number of codeword evaluations per lane."""
+    """Evaluate classes c_first, c_first + 1, ... (before c_stop) for a whole lane block, until
+    the bounds lb prove the top-3 of lanes 0..nlanes-1; return the codeword evaluations per lane.
+    (Not inlined: one compiled copy of the class loop serves both stages.)"""
     evaluated = 0
     c = c_first
-    while c < nclass:
+    while c < c_stop:
         if restricted:
             _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, cls_start[c],
                         cls_start[c + 1], cls_pstart[c], cls_weight[c], True)
@@ -597,9 +644,11 @@ def _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, nlanes, c_first, 
                         cls_start[c + 1], cls_pstart[c], cls_weight[c], False)
         evaluated += cls_start[c + 1] - cls_start[c]
         c += 1
+        if c >= c_stop:
+            break
         done = True
         for l in range(nlanes):
-            if (k3[l] >> IDX_BITS) >= base[l] + lb[c * LANES + l]:
+            if (k3[l] >> IDX_BITS) >= base[l] + lb[c, l]:
                 done = False
         if done:
             break
@@ -616,7 +665,7 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
 
     Per pixel: y, h, w as in the module docstring; c_ref = nearest codeword of h (coset
     leader e of the syndrome of h, else the re-encoded information bits), base = cost(c_ref),
-    V_i = +w_i where c_ref agrees with h, -w_i where not (stored V[i * LANES + lane]).  Every
+    V_i = +w_i where c_ref agrees with h, -w_i where not (stored V[i, lane]).  Every
     other codeword is c_ref ^ D with cost base + sum_{i in D} V_i and column col(c_ref) ^ col(D).
     Stage 1 evaluates D = 0 and the lightest weight class for the whole block; a lane is done
     when its third-best cost is below base + (sum of the t smallest V) for every heavier class
@@ -633,11 +682,17 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
     nclass = cls_weight.shape[0]
     L = LANES
     for yy in prange(height):
-        y = np.zeros(n, np.int64)
-        w = np.zeros(n, np.int64)
-        V = np.zeros(n * L, np.int32)
-        SV = np.zeros(n * L, np.int32)
-        lb = np.zeros((nclass + 1) * L, np.int64)
+        R = np.zeros((n, L), np.float64)
+        RI = np.zeros((n, L), np.float64)
+        PA = np.zeros((6, L), np.float64)
+        Y = np.zeros((n, L), np.int32)
+        SYN = np.zeros(L, np.int64)
+        COLH = np.zeros(L, np.int64)
+        HM = np.zeros(L, np.int64)
+        E = np.zeros(L, np.int64)
+        V = np.zeros((n, L), np.int32)
+        SV = np.zeros((n, L), np.int32)
+        lb = np.zeros((nclass + 1, L), np.int64)
         run = np.zeros(L, np.int64)
         acc = np.zeros(L, np.int32)
         base = np.zeros(L, np.int32)
@@ -650,8 +705,8 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
         dmin = np.zeros(L, np.float64)
         active = np.zeros(L, np.bool_)
         # pending block (lanes that need the heavier classes)
-        PV = np.zeros(n * L, np.int32)
-        Plb = np.zeros((nclass + 1) * L, np.int64)
+        PV = np.zeros((n, L), np.int32)
+        Plb = np.zeros((nclass + 1, L), np.int64)
         Pbase = np.zeros(L, np.int32)
         Pcolref = np.zeros(L, np.int32)
         Plo = np.zeros(L, np.int32)
@@ -669,53 +724,38 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
         pend_blocks = 0
         for x0 in range(0, width, L):
             blocks += 1
-            nact = 0
+            nact = _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2,
+                              q_scale, yy, x0, use_band, min_d, max_d, stripe, ncols, R, RI, PA,
+                              Y, dmin, active, lo, hi)
+            # hard decision -> syndrome and column of h, lane-parallel
             for l in range(L):
-                xx = x0 + l
-                act = False
-                a = 1.0
-                b = 0.0
-                if xx < width:
-                    a = white[yy, xx] * scale
-                    b = black[yy, xx] * scale
-                    llo, lhi = _band(xx, use_band, min_d, max_d, stripe, ncols)
-                    lo[l] = llo
-                    hi[l] = lhi
-                    act = (a > b) and (llo <= lhi)
-                active[l] = act
-                if not act:
-                    for i in range(n):
-                        V[i * L + l] = 0
-                    base[l] = 0
-                    colref[l] = 0
-                    dmin[l] = 0.0
-                    continue
-                nact += 1
-                hmask, dm = _pixel_llr(frames, inverse, has_inv, yy, xx, n, scale, a, b, metric,
-                                       sr2, ss2, q_scale, y, w)
-                dmin[l] = dm
-                syn = np.int64(0)
-                colh = np.int64(0)
-                for i in range(n):
-                    if y[i] > 0:
-                        syn ^= syn_col[i]
-                        colh ^= col_bit[i]
+                SYN[l] = 0
+                COLH[l] = 0
+                HM[l] = 0
+            for i in range(n):
+                sc = syn_col[i]
+                cbit = col_bit[i]
+                ibit = np.int64(1) << i
+                for l in range(L):
+                    m = -np.int64(Y[i, l] > 0)
+                    SYN[l] ^= sc & m
+                    COLH[l] ^= cbit & m
+                    HM[l] |= ibit & m
+            for l in range(L):
                 if has_leader:
-                    e = leader[syn]
-                    cr = colh ^ leader_col[syn]
+                    E[l] = np.int64(leader[SYN[l]])
+                    colref[l] = np.int32(COLH[l] ^ leader_col[SYN[l]])
                 else:
-                    e = hmask ^ masks[colh]
-                    cr = colh
-                colref[l] = np.int32(cr)
-                bs = np.int64(0)
-                for i in range(n):
-                    wi = w[i]
-                    if (e >> np.uint64(i)) & _U1:
-                        V[i * L + l] = np.int32(-wi)
-                        bs += wi
-                    else:
-                        V[i * L + l] = np.int32(wi)
-                base[l] = np.int32(bs)
+                    E[l] = HM[l] ^ np.int64(masks[COLH[l]])
+                    colref[l] = np.int32(COLH[l])
+                base[l] = 0
+            for i in range(n):
+                for l in range(L):
+                    yv = Y[i, l]
+                    wv = max(yv, -yv)
+                    bit = (E[l] >> i) & 1
+                    V[i, l] = wv - 2 * wv * np.int32(bit)
+                    base[l] += wv * np.int32(bit)
             if nact == 0:
                 for l in range(L):
                     if x0 + l < width:
@@ -729,17 +769,13 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
                 k3[l] = NO_KEY
             evaluated += nact
             if nclass > 0:
-                if restricted:
-                    _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, cls_start[0],
-                                cls_start[1], cls_pstart[0], cls_weight[0], True)
-                else:
-                    _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, cls_start[0],
-                                cls_start[1], cls_pstart[0], cls_weight[0], False)
-                evaluated += nact * (cls_start[1] - cls_start[0])
+                evaluated += nact * _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, L, 0,
+                                                 1, nclass, cls_weight, cls_start, cls_pstart,
+                                                 dpos, dcol, restricted)
                 _class_bounds(V, SV, run, lb, n, cls_weight, nclass)
             else:
                 for l in range(L):
-                    lb[l] = _NO_BOUND
+                    lb[0, l] = _NO_BOUND
             any_second = False
             for l in range(L):
                 xx = x0 + l
@@ -749,7 +785,7 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
                     _write_none(out_col, out_dist, out_conf, yy, xx)
                     continue
                 cidx = 1 if nclass > 0 else 0
-                if (k3[l] >> IDX_BITS) < base[l] + lb[cidx * L + l]:
+                if (k3[l] >> IDX_BITS) < base[l] + lb[cidx, l]:
                     _write(out_col, out_dist, out_conf, yy, xx, k1[l], k2[l], k3[l], dmin[l], q_scale)
                     continue
                 # move lane l into the pending block
@@ -757,9 +793,9 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
                 n_second += 1
                 p = npend
                 for i in range(n):
-                    PV[i * L + p] = V[i * L + l]
+                    PV[i, p] = V[i, l]
                 for c in range(nclass + 1):
-                    Plb[c * L + p] = lb[c * L + l]
+                    Plb[c, p] = lb[c, l]
                 Pbase[p] = base[l]
                 Pcolref[p] = colref[l]
                 Plo[p] = lo[l]
@@ -772,8 +808,8 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
                 npend += 1
                 if npend == L:
                     evaluated += npend * _run_classes(PV, Plb, Pbase, Pcolref, Plo, Phi, Pk1, Pk2, Pk3,
-                                                      acc, npend, 1, nclass, cls_weight, cls_start,
-                                                      cls_pstart, dpos, dcol, restricted)
+                                                      acc, npend, 1, nclass, nclass, cls_weight,
+                                                      cls_start, cls_pstart, dpos, dcol, restricted)
                     for q in range(npend):
                         _write(out_col, out_dist, out_conf, yy, Px[q], Pk1[q], Pk2[q], Pk3[q],
                                Pdmin[q], q_scale)
@@ -784,12 +820,12 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
         if npend > 0:
             for p in range(npend, L):
                 for i in range(n):
-                    PV[i * L + p] = 0
+                    PV[i, p] = 0
                 Pbase[p] = 0
                 Pcolref[p] = 0
             evaluated += npend * _run_classes(PV, Plb, Pbase, Pcolref, Plo, Phi, Pk1, Pk2, Pk3, acc,
-                                              npend, 1, nclass, cls_weight, cls_start, cls_pstart,
-                                              dpos, dcol, restricted)
+                                              npend, 1, nclass, nclass, cls_weight, cls_start,
+                                              cls_pstart, dpos, dcol, restricted)
             for q in range(npend):
                 _write(out_col, out_dist, out_conf, yy, Px[q], Pk1[q], Pk2[q], Pk3[q], Pdmin[q],
                        q_scale)
@@ -812,64 +848,85 @@ def soft_band(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q
     n, height, width = frames.shape
     L = LANES
     for yy in prange(height):
-        y = np.zeros(n, np.int64)
-        w = np.zeros(n, np.int64)
+        R = np.zeros((n, L), np.float64)
+        RI = np.zeros((n, L), np.float64)
+        PA = np.zeros((6, L), np.float64)
+        Y = np.zeros((n, L), np.int32)
+        dmin = np.zeros(L, np.float64)
+        active = np.zeros(L, np.bool_)
+        lo = np.zeros(L, np.int32)
+        hi = np.zeros(L, np.int32)
         acc = np.zeros(ncols + L, np.int32)
         K1 = np.empty(L, np.int64)
         K2 = np.empty(L, np.int64)
         K3 = np.empty(L, np.int64)
         pixels = 0
         evaluated = 0
-        for xx in range(width):
-            a = white[yy, xx] * scale
-            b = black[yy, xx] * scale
-            lo, hi = _band(xx, True, min_d, max_d, stripe, ncols)
-            if not (a > b) or lo > hi:
-                _write_none(out_col, out_dist, out_conf, yy, xx)
-                continue
-            h, dmin = _pixel_llr(frames, inverse, has_inv, yy, xx, n, scale, a, b, metric,
-                                 sr2, ss2, q_scale, y, w)
-            c0 = np.int64(0)
-            for i in range(n):
-                if y[i] > 0:
-                    c0 += y[i]
-            nb = hi - lo + 1
-            pixels += 1
-            evaluated += nb
-            c0_32 = np.int32(c0)
-            for c in range(nb):
-                acc[c] = c0_32
-            for i in range(n):
-                yi = np.int32(y[i])
+        n4 = n - n % 4
+        for x0 in range(0, width, L):
+            _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
+                       yy, x0, True, min_d, max_d, stripe, ncols, R, RI, PA, Y, dmin, active,
+                       lo, hi)
+            for ln in range(L):
+                xx = x0 + ln
+                if xx >= width:
+                    break
+                if not active[ln]:
+                    _write_none(out_col, out_dist, out_conf, yy, xx)
+                    continue
+                clo = lo[ln]
+                chi = hi[ln]
+                c0 = np.int32(0)
+                for i in range(n):
+                    c0 += max(Y[i, ln], 0)
+                nb = chi - clo + 1
+                pixels += 1
+                evaluated += nb
                 for c in range(nb):
-                    acc[c] -= masks_t[i, lo + c] & yi
-            for l in range(L):
-                K1[l] = NO_KEY
-                K2[l] = NO_KEY
-                K3[l] = NO_KEY
-            for cb in range(0, nb, L):
+                    acc[c] = c0
+                for i in range(0, n4, 4):  # 4 rows per pass: fewer loads / stores of acc
+                    y0 = Y[i, ln]
+                    y1 = Y[i + 1, ln]
+                    y2 = Y[i + 2, ln]
+                    y3 = Y[i + 3, ln]
+                    r0 = masks_t[i, clo:chi + 1]
+                    r1 = masks_t[i + 1, clo:chi + 1]
+                    r2 = masks_t[i + 2, clo:chi + 1]
+                    r3 = masks_t[i + 3, clo:chi + 1]
+                    for c in range(nb):
+                        acc[c] -= (r0[c] & y0) + (r1[c] & y1) + (r2[c] & y2) + (r3[c] & y3)
+                for i in range(n4, n):
+                    yi = Y[i, ln]
+                    row = masks_t[i, clo:chi + 1]
+                    for c in range(nb):
+                        acc[c] -= row[c] & yi
                 for l in range(L):
-                    c = cb + l
-                    key = (np.int64(acc[c]) << IDX_BITS) | np.int64(lo + c)
-                    key = key if c < nb else NO_KEY
-                    t = K1[l]
-                    K1[l] = min(t, key)
-                    key = max(t, key)
-                    t = K2[l]
-                    K2[l] = min(t, key)
-                    key = max(t, key)
-                    K3[l] = min(K3[l], key)
-            k1 = NO_KEY
-            k2 = NO_KEY
-            k3 = NO_KEY
-            for l in range(L):
-                if K1[l] < k3:
-                    k1, k2, k3 = _insert(K1[l], k1, k2, k3)
-                    if K2[l] < k3:
-                        k1, k2, k3 = _insert(K2[l], k1, k2, k3)
-                        if K3[l] < k3:
-                            k1, k2, k3 = _insert(K3[l], k1, k2, k3)
-            _write(out_col, out_dist, out_conf, yy, xx, k1, k2, k3, dmin, q_scale)
+                    K1[l] = NO_KEY
+                    K2[l] = NO_KEY
+                    K3[l] = NO_KEY
+                for cb in range(0, nb, L):
+                    for l in range(L):
+                        c = cb + l
+                        key = (np.int64(acc[c]) << IDX_BITS) | np.int64(clo + c)
+                        key = key if c < nb else NO_KEY
+                        t = K1[l]
+                        K1[l] = min(t, key)
+                        key = max(t, key)
+                        t = K2[l]
+                        K2[l] = min(t, key)
+                        key = max(t, key)
+                        K3[l] = min(K3[l], key)
+                k1 = NO_KEY
+                k2 = NO_KEY
+                k3 = NO_KEY
+                for l in range(L):
+                    if K1[l] < k3:
+                        k1, k2, k3 = _insert(K1[l], k1, k2, k3)
+                        if K2[l] < k3:
+                            k1, k2, k3 = _insert(K2[l], k1, k2, k3)
+                            if K3[l] < k3:
+                                k1, k2, k3 = _insert(K3[l], k1, k2, k3)
+                _write(out_col, out_dist, out_conf, yy, xx, k1, k2, k3, dmin[ln], q_scale)
         out_stats[yy, 0] = pixels
         out_stats[yy, 1] = evaluated
 

@@ -68,7 +68,7 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     outputs = true                        # record depth and confidence
 
     [sim]
-    scene = "planes"                      # edge.sim.make_scene name
+    scene = "steps"                       # edge.sim.make_scene name (edge.sim.scene_names())
     seed = 0
     ambient = 0.2                         # ambient light level (0..1 scale)
     projector = 0.6                       # projector light level (0..1 scale)
@@ -221,7 +221,7 @@ class RecordingSettings:
 
 @dataclass(frozen=True)
 class SimSettings:
-    scene: str = _f("planes", pattern=_NAME)
+    scene: str = _f("steps", pattern=_NAME)
     seed: int = _f(0, lo=0, hi=2**63 - 1)
     ambient: float = _f(0.2, lo=0.0, hi=100.0)
     projector: float = _f(0.6, lo=0.0, hi=100.0)

@@ -6,18 +6,20 @@
 
 Modules: `assembly` (frames -> complete stacks, drop + count incomplete), `stack_queue`
 (drop-oldest hand-over), `pipeline` (stack -> depth, pure), `depth` (column -> depth mm, pure),
-`service` (threads, status, config updates), `recording` (MCAP writer thread), `replay`
+`dots` (dot projector: frame and event cameras), `curtain` (light curtain), `event_record` (raw
+events in MCAP), `service` (threads, status, config updates), `recording` (MCAP writer thread), `replay`
 (bit-exact offline replay), `console` (CLI output).
 """
 
 from .assembly import AssemblyCounters, Stack, StackAssembler
 from .depth import column_to_depth_mm, column_to_disparity, confidence_to_u8, disparity_to_depth_mm
-from .pipeline import DepthPipeline, DepthResult, profile_schedule, stack_layout
+from .pipeline import (DepthPipeline, DepthResult, make_pipeline, pipeline_kind, profile_layout, profile_schedule,
+                       stack_layout)
 from .service import ConfigRejected, Service
 from .stack_queue import LatestQueue
 
 __all__ = [
     "AssemblyCounters", "ConfigRejected", "DepthPipeline", "DepthResult", "LatestQueue", "Service", "Stack",
     "StackAssembler", "column_to_depth_mm", "column_to_disparity", "confidence_to_u8", "disparity_to_depth_mm",
-    "profile_schedule", "stack_layout",
+    "make_pipeline", "pipeline_kind", "profile_layout", "profile_schedule", "stack_layout",
 ]

@@ -24,7 +24,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..sensors.base import BLACK, WHITE, Frame, parse_projector_frame, stack_schedule
+from ..sensors.base import BLACK, WHITE, Frame, layout_schedule, parse_projector_frame, stack_schedule
 from .assembly import Stack
 from .depth import column_to_depth_mm, confidence_to_u8
 
@@ -41,7 +41,8 @@ class DepthResult:
     stack / sequence: stack id and sequence number of its first frame; timestamp_ns: sensor
     time of its last frame; received_ns: host time (time.time_ns) the last frame arrived;
     decode_s: seconds spent in `process`; edc_rounds: adaptive rounds run; extra_frames: frames
-    captured by those rounds (in capture order, so they can be recorded and replayed).
+    captured by those rounds (in capture order, so they can be recorded and replayed); stats:
+    per-stack counters that the service sums into its status (e.g. ``events_out_of_order``).
     """
 
     stack: int
@@ -54,6 +55,7 @@ class DepthResult:
     decode_s: float = 0.0
     edc_rounds: int = 0
     extra_frames: tuple[Frame, ...] = field(default=())
+    stats: dict[str, int] = field(default_factory=dict)
 
     @property
     def valid_fraction(self) -> float:
@@ -64,18 +66,58 @@ class DepthResult:
         return float(np.median(d)) if d.size else float("nan")
 
 
+#: Pipeline kinds: coded column patterns, dot projector + frame camera, dot projector + event
+#: sensor, light curtain.
+PIPELINE_KINDS = ("columns", "dots", "event-dots", "curtain")
+
+
+def pipeline_kind(profile) -> str:
+    """Which processing chain a profile needs (see `make_pipeline`).
+
+    ``projector.kind`` columns -> "columns"; line -> "curtain"; dots -> "event-dots" when the
+    profile's sensor is an event sensor (``sensor.backend = "event"``), else "dots".
+    """
+    kind = profile.projector.kind
+    if kind == "columns":
+        return "columns"
+    if kind == "line":
+        return "curtain"
+    return "event-dots" if profile.sensor.backend == "event" else "dots"
+
+
 def stack_layout(profile) -> tuple[int, int]:
-    """(n code frames, source-code length L) of a profile's stacks."""
+    """(n code frames, source-code length L) of a profile's stacks (n = 1 without a code)."""
     from edge.codes import get_code
 
     n = get_code(profile.code.name).n if profile.code.name else 1
     return n, max(1, len(profile.code.source))
 
 
+def profile_layout(profile) -> str:
+    """`edge.sensors.base` stack layout of a profile: "stack" for column codes, else "slots"."""
+    return "stack" if pipeline_kind(profile) == "columns" else "slots"
+
+
 def profile_schedule(profile) -> np.ndarray:
-    """Projector frame ids of one stack of ``profile`` (see `edge.sensors.base.stack_schedule`)."""
+    """Projector frame ids of one stack of ``profile`` (see `edge.sensors.base.layout_schedule`)."""
     n, L = stack_layout(profile)
-    return stack_schedule(n, L)
+    return layout_schedule(profile_layout(profile), n, L)
+
+
+def make_pipeline(profile):
+    """The processing chain for ``profile``: `DepthPipeline` (columns), `edge.runtime.dots.DotsPipeline`,
+    `edge.runtime.dots.EventDotsPipeline` or `edge.runtime.curtain.CurtainPipeline`.  Every one has
+    ``profile``, ``schedule`` and ``process(stack, masked_capture=None) -> DepthResult``."""
+    kind = pipeline_kind(profile)
+    if kind == "columns":
+        return DepthPipeline(profile)
+    if kind == "curtain":
+        from .curtain import CurtainPipeline
+
+        return CurtainPipeline(profile)
+    from .dots import DotsPipeline, EventDotsPipeline
+
+    return EventDotsPipeline(profile) if kind == "event-dots" else DotsPipeline(profile)
 
 
 def max_value(bits: int) -> int:
@@ -90,8 +132,8 @@ class DepthPipeline:
 
         if profile.projector.kind != "columns":
             raise ValueError(
-                f"the service decodes 'columns' projectors (coded patterns); profile {profile.name!r} "
-                f"has projector.kind = {profile.projector.kind!r}")
+                f"DepthPipeline decodes 'columns' projectors (coded patterns); profile {profile.name!r} "
+                f"has projector.kind = {profile.projector.kind!r} (use make_pipeline)")
         self.profile = profile
         self.code = get_code(profile.code.name)
         self.n, self.source_length = stack_layout(profile)

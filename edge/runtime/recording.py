@@ -1,4 +1,5 @@
-"""Recording off the capture path: a writer thread around `edge.io.mcap_writer.Recorder`.
+"""Recording off the capture path: a writer thread around `EdgeRecorder` (an
+`edge.io.mcap_writer.Recorder` that also writes event slices, `edge.runtime.event_record`).
 
 The capture and decode threads only append to an in-memory queue (bounded by bytes, default
 512 MB); one writer thread serialises, compresses and writes.  If the writer ever falls that far
@@ -14,8 +15,38 @@ import time
 from collections import deque
 from typing import Any
 
-from ..sensors.base import Frame, parse_projector_frame
+from edge.io.mcap_writer import Recorder
+
+from ..sensors.base import EventSlice, Frame, parse_projector_frame
 from .pipeline import DepthResult
+
+
+class EdgeRecorder(Recorder):
+    """`Recorder` plus `write_events`: event slices on ``/<device>/events`` (schema ``edge.EventSlice``,
+    protobuf; layout in `edge.runtime.event_record`).  The channel is registered on the first slice,
+    so frame recordings are unchanged."""
+
+    def write_events(self, s: EventSlice) -> None:
+        from .event_record import SCHEMA_NAME, TOPIC_LEAF, event_slice_message, schema_data
+
+        cam = self.profile.camera
+        data = event_slice_message(s, cam.width, cam.height)
+        with self._lock:
+            self._check_open()
+            if TOPIC_LEAF not in self._channels:
+                schema_id = self._writer.register_schema(name=SCHEMA_NAME, encoding="protobuf", data=schema_data())
+                self.topics[TOPIC_LEAF] = f"/{self.profile.zenoh.device}/{TOPIC_LEAF}"
+                self._channels[TOPIC_LEAF] = self._writer.register_channel(
+                    topic=self.topics[TOPIC_LEAF], message_encoding="protobuf", schema_id=schema_id)
+            self._add(TOPIC_LEAF, data, s.timestamp_ns, s.sequence)
+            self._file.flush()
+
+    def write_record(self, record, **extra) -> None:
+        """A `Frame` (``write_frame`` with its role) or an `EventSlice` (``write_events``)."""
+        if isinstance(record, EventSlice):
+            self.write_events(record)
+        else:
+            self.write_frame(record, role=frame_role(record.projector_frame), **extra)
 
 
 def frame_role(projector_frame: int) -> str:
@@ -30,14 +61,12 @@ class RecordingThread:
 
     def __init__(self, path: str | os.PathLike[str], profile, *, sensor_metadata: dict[str, Any] | None = None,
                  max_queued_bytes: int = 512 << 20, raw: bool | None = None, outputs: bool | None = None) -> None:
-        from edge.io.mcap_writer import Recorder
-
         self.path = os.fspath(path)
-        self.recorder = Recorder(self.path, profile, sensor_metadata=sensor_metadata)
+        self.recorder = EdgeRecorder(self.path, profile, sensor_metadata=sensor_metadata)
         self.raw = profile.recording.raw if raw is None else raw
         self.outputs = profile.recording.outputs if outputs is None else outputs
         self.max_queued_bytes = int(max_queued_bytes)
-        self._items: deque[tuple[str, Any]] = deque()
+        self._items: deque[tuple[str, Any, int]] = deque()
         self._queued_bytes = 0
         self._cond = threading.Condition()
         self._closing = False
@@ -56,13 +85,15 @@ class RecordingThread:
         with self._cond:
             if self._closing or self._queued_bytes + nbytes > self.max_queued_bytes:
                 return False
-            self._items.append((kind, item))
+            self._items.append((kind, item, nbytes))
             self._queued_bytes += nbytes
             self._cond.notify()
             return True
 
-    def on_frame(self, frame: Frame) -> None:
-        if self.raw and not self._enqueue("frame", frame, frame.image.nbytes):
+    def on_frame(self, frame: Frame | EventSlice) -> None:
+        """Queue a camera frame or an event slice (both count as frames in the stats)."""
+        nbytes = frame.nbytes if isinstance(frame, EventSlice) else frame.image.nbytes
+        if self.raw and not self._enqueue("frame", frame, nbytes):
             self.frames_lost += 1
 
     def on_result(self, result: DepthResult) -> None:
@@ -73,7 +104,7 @@ class RecordingThread:
 
     def _write(self, kind: str, item: Any) -> None:
         if kind == "frame":
-            self.recorder.write_frame(item, role=frame_role(item.projector_frame))
+            self.recorder.write_record(item)
             self.frames_written += 1
         else:
             r: DepthResult = item
@@ -89,9 +120,8 @@ class RecordingThread:
                     self._cond.wait(0.5)
                 if not self._items and self._closing:
                     return
-                kind, item = self._items.popleft()
-                self._queued_bytes -= item.image.nbytes if kind == "frame" else (
-                    item.depth_mm.nbytes + item.confidence.nbytes)
+                kind, item, nbytes = self._items.popleft()
+                self._queued_bytes -= nbytes
             t0 = time.perf_counter()
             try:
                 self._write(kind, item)

@@ -3,7 +3,9 @@
 `replay_recording(path)` reads the recording stack by stack (`RecordingReader.stacks`), assembles
 each stack exactly as the service does (`StackAssembler`: incomplete stacks are dropped and
 counted), runs the same `DepthPipeline.process` (EDC rounds get the recorded masked frames back),
-and compares depth (and confidence) with what the service recorded, bit for bit.
+and compares depth (and confidence) with what the service recorded, bit for bit.  Every profile
+kind replays through its own pipeline (`make_pipeline`); an event recording (``event-dots``) is
+read slice by slice from its ``/<device>/events`` topic (`edge.runtime.event_record.event_stacks`).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import numpy as np
 
 from ..sensors.base import Frame, parse_projector_frame
 from .assembly import StackAssembler
-from .pipeline import DepthPipeline, DepthResult
+from .pipeline import DepthPipeline, DepthResult, make_pipeline, pipeline_kind
 
 
 @dataclass
@@ -76,8 +78,10 @@ def replay_recording(path: str | os.PathLike[str], *, expected_profile: Any = No
     if reader.profile is None:
         raise RecordingError(f"{os.fspath(path)}: the recording holds no edge profile; cannot replay it")
     report = ReplayReport(os.fspath(path), reader.profile.name)
-    pipeline = DepthPipeline(reader.profile)
+    pipeline = make_pipeline(reader.profile)
     assembler = StackAssembler(pipeline.schedule)
+    if pipeline_kind(reader.profile) == "event-dots":
+        return _replay_events(reader, pipeline, assembler, report, on_result)
     try:
         for recorded in reader.stacks():
             if not recorded.frames:
@@ -104,20 +108,56 @@ def replay_recording(path: str | os.PathLike[str], *, expected_profile: Any = No
                 return got
 
             result = pipeline.process(stack, recorded_masked)
-            if on_result is not None:
-                on_result(result)
-            report.stacks_compared += 1
-            problems = []
-            if not np.array_equal(result.depth_mm, out.depth_mm):
-                problems.append(_describe_diff("depth", result.depth_mm, out.depth_mm))
-            if not np.array_equal(result.confidence, out.confidence):
-                problems.append(_describe_diff("confidence", result.confidence, out.confidence))
-            if problems:
-                report.mismatches.append(f"stack {recorded.stack}: " + "; ".join(problems))
-            else:
-                report.stacks_matched += 1
+            _compare(report, recorded.stack, result, out, on_result)
         assembler.flush()
     except RecordingError as exc:  # strict=False normally reports via reader.problem; be safe
+        report.problem = str(exc)
+    report.stacks_incomplete = assembler.counters.stacks_incomplete
+    if reader.problem and not report.problem:
+        report.problem = reader.problem
+    return report
+
+
+def _compare(report: ReplayReport, stack_id: int, result: DepthResult, out: Any,
+             on_result: Callable[[DepthResult], None] | None) -> None:
+    if on_result is not None:
+        on_result(result)
+    report.stacks_compared += 1
+    problems = []
+    if not np.array_equal(result.depth_mm, out.depth_mm):
+        problems.append(_describe_diff("depth", result.depth_mm, out.depth_mm))
+    if not np.array_equal(result.confidence, out.confidence):
+        problems.append(_describe_diff("confidence", result.confidence, out.confidence))
+    if problems:
+        report.mismatches.append(f"stack {stack_id}: " + "; ".join(problems))
+    else:
+        report.stacks_matched += 1
+
+
+def _replay_events(reader: Any, pipeline: Any, assembler: StackAssembler, report: ReplayReport,
+                   on_result: Callable[[DepthResult], None] | None) -> ReplayReport:
+    """The event-recording branch of `replay_recording`."""
+    from edge.io.mcap import RecordingError
+
+    from .event_record import event_stacks
+
+    try:
+        for stack_id, slices, out in event_stacks(reader):
+            if not slices:
+                continue
+            report.stacks_read += 1
+            stack = None
+            for s in slices:
+                stack = assembler.push(s, received_ns=s.timestamp_ns) or stack
+            if stack is None:
+                assembler.flush()
+                continue
+            if out is None:
+                report.stacks_without_output += 1
+                continue
+            _compare(report, stack_id, pipeline.process(stack), out, on_result)
+        assembler.flush()
+    except (RecordingError, ValueError) as exc:
         report.problem = str(exc)
     report.stacks_incomplete = assembler.counters.stacks_incomplete
     if reader.problem and not report.problem:

@@ -4,7 +4,7 @@ Threads (all joined by `Service.stop` / at the end of `Service.run`):
 
 * capture: ``sensor.read`` -> recorder (raw frames, non-blocking hand-off) -> `StackAssembler`
   -> `LatestQueue` (never blocks; a full queue drops its oldest whole stack, counted stale);
-* decode: queue -> `DepthPipeline.process` -> every sink's ``on_result`` and the recorder;
+* decode: queue -> the profile's pipeline (`make_pipeline`) ``process`` -> every sink's ``on_result`` and the recorder;
   config updates are applied here, between stacks;
 * the calling thread of `run` waits, and hands a status dict to the sinks every
   ``zenoh.status_period_s``.
@@ -26,7 +26,7 @@ import numpy as np
 
 from ..sensors.base import EndOfStream, Frame, MaskedCapture, Sensor
 from .assembly import StackAssembler
-from .pipeline import DepthPipeline, DepthResult
+from .pipeline import DepthResult, make_pipeline
 from .stack_queue import Closed, LatestQueue
 
 #: Profile tables that may change while the service runs (applied between stacks).
@@ -60,7 +60,7 @@ class Service:
 
     def __init__(self, profile, sensor: Sensor, *, sinks: Iterable[Any] = (), recorder: Any = None,
                  queue_capacity: int = 1,
-                 pipeline_factory: Callable[[Any], Any] = DepthPipeline) -> None:
+                 pipeline_factory: Callable[[Any], Any] = make_pipeline) -> None:
         self.profile = profile
         self.sensor = sensor
         self.sinks = list(sinks)
@@ -87,6 +87,7 @@ class Service:
         self._started = 0.0
         self.last_result: DepthResult | None = None
         self.results_seen = 0
+        self.pipeline_stats: dict[str, int] = {}  # sums of every decoded stack's DepthResult.stats
 
     # -- control ------------------------------------------------------------------------------
     def stop(self) -> None:
@@ -196,6 +197,8 @@ class Service:
             except Exception as exc:
                 self.counters.sink_errors += 1
                 self.counters.last_error = f"sink: {type(exc).__name__}: {exc}"
+        for key, value in result.stats.items():
+            self.pipeline_stats[key] = self.pipeline_stats.get(key, 0) + int(value)
         now = time.time_ns()
         self.counters.stacks_published += 1
         self._latency_s.append((now - result.received_ns) / 1e9)
@@ -240,6 +243,7 @@ class Service:
             "config_rejected": self.counters.config_rejected,
             "recorder": self.recorder.stats() if self.recorder is not None and hasattr(self.recorder, "stats") else None,
             "errors": self.counters.last_error,
+            **{k: v for k, v in self.pipeline_stats.items() if k not in ("stacks_decoded",)},
         }
 
     def _emit_status(self) -> None:

@@ -8,25 +8,45 @@ from __future__ import annotations
 
 from typing import Any
 
-from .base import (BLACK, WHITE, EndOfStream, Frame, MaskedCapture, ProjectorFrame, Sensor, SensorInfo,
-                   parse_projector_frame, projector_frame_id, stack_schedule)
+from .base import (BLACK, WHITE, EndOfStream, EventSlice, Frame, MaskedCapture, ProjectorFrame, Sensor, SensorInfo,
+                   layout_schedule, parse_projector_frame, projector_frame_id, slot_schedule, stack_schedule)
 
 BACKENDS = ("sim", "replay", "oak", "event")
 
 
 def open_sensor(profile, backend: str | None = None, *, replay_path: str | None = None, max_speed: bool = False,
-                stacks: int | None = None, poses: int = 0, **options: Any) -> Sensor:
+                stacks: int | None = None, poses: int = 0, interference: bool = False, first_stack: int = 0,
+                **options: Any) -> Sensor:
     """The backend named ``backend`` (default ``profile.sensor.backend``) configured from ``profile``.
 
     replay_path: MCAP file for ``replay`` (default ``profile.sensor.replay_path``); max_speed: no
-    real-time pacing (sim, replay); stacks: end after this many stacks (sim); poses: sim pre-rendered
-    motion poses (0 = live).
+    real-time pacing (sim, event, replay); stacks: end after this many stacks (sim, event); poses:
+    pre-rendered motion poses (0 = live); first_stack: id (scene time) of the first simulated
+    stack; interference: the simulated event / curtain device gets an
+    unsynchronised second device next to it.
+
+    ``sim`` picks the simulator that fits the profile's projector: `SimSensor` (columns),
+    `DotsSimSensor` (dots; a stand-in for the OAK's IR dot projector), `CurtainSimSensor` (line);
+    for an event profile (``sensor.backend = "event"``) ``sim`` and ``event`` both mean
+    `EventSimSensor`.
     """
     backend = backend or profile.sensor.backend
+    kind = profile.projector.kind
+    if backend == "sim" and kind == "dots" and profile.sensor.backend == "event":
+        backend = "event"
     if backend == "sim":
+        if kind == "dots":
+            from .dots import DotsSimSensor
+
+            return DotsSimSensor(profile, stacks=stacks, max_speed=max_speed, poses=poses, first_stack=first_stack)
+        if kind == "line":
+            from .curtain import CurtainSimSensor
+
+            return CurtainSimSensor(profile, stacks=stacks, max_speed=max_speed, poses=poses,
+                                    first_stack=first_stack, interference=interference)
         from .sim import SimSensor
 
-        return SimSensor(profile, stacks=stacks, max_speed=max_speed, poses=poses)
+        return SimSensor(profile, stacks=stacks, max_speed=max_speed, poses=poses, first_stack=first_stack)
     if backend == "replay":
         from .replay import ReplaySensor
 
@@ -39,11 +59,12 @@ def open_sensor(profile, backend: str | None = None, *, replay_path: str | None 
 
         return OakSensor(profile, **options)
     if backend == "event":
-        raise ValueError(
-            "sensor backend 'event' is not wired into the service yet (event SL runs offline through "
-            "edge.source.event_sl); expected one of sim, replay, oak")
+        from .event import EventSimSensor
+
+        return EventSimSensor(profile, stacks=stacks, max_speed=max_speed, poses=poses,
+                              first_stack=first_stack, interference=interference)
     raise ValueError(f"unknown sensor backend {backend!r}; expected one of {', '.join(BACKENDS)}")
 
 
-__all__ = ["BACKENDS", "BLACK", "WHITE", "EndOfStream", "Frame", "MaskedCapture", "ProjectorFrame", "Sensor",
+__all__ = ["BACKENDS", "BLACK", "WHITE", "EndOfStream", "EventSlice", "Frame", "layout_schedule", "slot_schedule", "MaskedCapture", "ProjectorFrame", "Sensor",
            "SensorInfo", "open_sensor", "parse_projector_frame", "projector_frame_id", "stack_schedule"]

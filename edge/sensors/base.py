@@ -15,6 +15,18 @@ Projector frame ids pack these three facts into one non-negative int::
     edc_round  0 = full pattern, r >= 1 = frames masked by adaptive round r
 
 so ``id == i`` for plain code frame ``i`` and ``WHITE``/``BLACK`` are recognisable in a log.
+
+Stack layouts (`SensorInfo.layout`):
+
+    "stack"   coded column patterns: n code frames, WHITE, BLACK, each in L slots ((n + 2) * L
+              frames; `stack_schedule`)
+    "slots"   one projector frame (the dot pattern or the curtain scan, base 0) in the L slots of
+              the source code (L frames; `slot_schedule`): dot projectors, event sensors and light
+              curtains, whose depth comes from one de-spread image per code period
+
+Event sensors deliver `EventSlice` records instead of `Frame` records: the events of one slot
+(time slice), with the same sequence / stack / projector_frame bookkeeping, so the assembler and
+the service treat both alike.
 """
 
 from __future__ import annotations
@@ -93,6 +105,26 @@ def stack_schedule(n_code_frames: int, source_length: int = 1, *, edc_round: int
     )
 
 
+def slot_schedule(source_length: int = 1, *, edc_round: int = 0) -> np.ndarray:
+    """Projector frame ids of a "slots" stack: projector frame 0 in slots 0..L-1, int64 (L,)."""
+    if not 1 <= source_length <= MAX_SLOTS:
+        raise ValueError(f"source code length must be in 1..{MAX_SLOTS}, got {source_length}")
+    return np.array([projector_frame_id(0, slot=s, edc_round=edc_round) for s in range(source_length)],
+                    dtype=np.int64)
+
+
+LAYOUTS = ("stack", "slots")
+
+
+def layout_schedule(layout: str, n_code_frames: int, source_length: int = 1) -> np.ndarray:
+    """The schedule of a stack layout (see module docstring)."""
+    if layout == "stack":
+        return stack_schedule(n_code_frames, source_length)
+    if layout == "slots":
+        return slot_schedule(source_length)
+    raise ValueError(f"stack layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class Frame:
     """One camera frame as a backend reports it.
@@ -132,14 +164,40 @@ class SensorInfo:
     n_code_frames: int
     source_length: int = 1
     metadata: dict[str, str] = field(default_factory=dict)
+    layout: str = "stack"
 
     @property
     def schedule(self) -> np.ndarray:
-        return stack_schedule(self.n_code_frames, self.source_length)
+        return layout_schedule(self.layout, self.n_code_frames, self.source_length)
 
     @property
     def frames_per_stack(self) -> int:
-        return (self.n_code_frames + 2) * self.source_length
+        return int(self.schedule.size)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class EventSlice:
+    """The events of one time slice (one source-code slot) as an event backend reports them.
+
+    events: (N,) `edge.source.events.EVENT_DTYPE` (x, y u16 pixels; t int64 sensor microseconds;
+        p int8 +1 / -1), in arrival order (normally sorted by t; a broken sensor may not be).
+    sequence, stack, projector_frame: as for `Frame` (the slot is the id's slot field).
+    timestamp_ns: host time the slice was delivered (ns).  exposure_us: slice duration (us).
+    t_start_us, t_end_us: the slice's time window [t_start_us, t_end_us) on the sensor clock.
+    """
+
+    events: np.ndarray
+    sequence: int
+    timestamp_ns: int
+    exposure_us: float
+    projector_frame: int
+    stack: int
+    t_start_us: int
+    t_end_us: int
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.events.nbytes)
 
 
 class EndOfStream(Exception):

@@ -24,6 +24,13 @@ NOT verified on hardware here (no device on the build machine): the emitter comm
 without a device: construction, the ImgFrame -> Frame conversion, stack numbering and the emitter
 schedule, through a host-side pipeline (``dai.Pipeline(createImplicitDevice=False)`` with a
 ``dai.node.ThreadedHostNode`` sending ``dai.ImgFrame`` objects) - see tests/test_sensors_oak.py.
+
+Dot profiles (``oak-d-pro``): stacks use the "slots" layout (one dot frame in the L chips of the
+source code).  This backend streams the left mono camera only; `edge.runtime.dots.DotsPipeline`
+block-matches a mono frame against the nominal projector pattern and a side-by-side ``(H, 2W)``
+left | right frame against the de-spread right image.  Pairing CAM_B and CAM_C frames into such
+stereo frames is NOT implemented yet, so real-device dot depth is not available; run the profile
+without hardware with ``edge run --profile oak-d-pro --sensor sim`` (`edge.sensors.dots`).
 """
 
 from __future__ import annotations
@@ -36,7 +43,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .base import EndOfStream, Frame, SensorInfo, parse_projector_frame, stack_schedule
+from .base import EndOfStream, Frame, SensorInfo, parse_projector_frame
 
 _US = datetime.timedelta(microseconds=1)
 
@@ -154,16 +161,16 @@ class OakSensor:
                  output_factory: Callable[[Any], Any] | None = None,
                  emitter: Any = None, dot_intensity: float = 0.8, flood_intensity: float = 0.0,
                  lead_frames: int = 2, max_frames: int | None = None) -> None:
-        from edge.codes import get_code
+        from edge.runtime.pipeline import profile_layout, stack_layout
 
-        n = get_code(profile.code.name).n if profile.code.name else 1
-        L = max(1, len(profile.code.source))
+        n, L = stack_layout(profile)
+        layout = profile_layout(profile)  # dots profiles: one dot frame in the L source-code slots
         cam = profile.camera
         self.profile = profile
         self.info = SensorInfo(
             name="oak", width=cam.width, height=cam.height, bits=8, fps=cam.rate_hz,
-            n_code_frames=n, source_length=L, metadata={"camera": "CAM_B", "device": "OAK-D Pro"})
-        self._schedule = stack_schedule(n, L)
+            n_code_frames=n, source_length=L, metadata={"camera": "CAM_B", "device": "OAK-D Pro"}, layout=layout)
+        self._schedule = self.info.schedule
         self.numbering = StackNumbering(self._schedule)
         self.emitters = EmitterSchedule(self._schedule, profile.code.source or "1", dot_intensity,
                                         flood_intensity, lead_frames)

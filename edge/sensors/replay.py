@@ -1,7 +1,8 @@
 """Replay backend: the camera frames of an MCAP recording, at recorded or maximum speed.
 
 Frames come out in file order with their recorded sequence numbers, timestamps, projector frame
-ids and stack ids (so gaps and drops in the recording reach the assembler unchanged).  Masked EDC
+ids and stack ids (so gaps and drops in the recording reach the assembler unchanged); an event
+recording (``event-dots``) streams its recorded `EventSlice` records the same way.  Masked EDC
 frames (edc_round > 0) are not streamed: `capture_masked` hands them back when the adaptive loop
 of the same stack asks for them.  Timestamps are re-based to the host wall clock at `start`
 (``timestamp_ns`` = start time + recorded offset) so latency figures stay meaningful.
@@ -9,6 +10,7 @@ of the same stack asks for them.  Timestamps are re-based to the host wall clock
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import queue
 import threading
@@ -24,7 +26,7 @@ class ReplaySensor:
 
     def __init__(self, path: str | os.PathLike[str], *, profile=None, max_speed: bool = False) -> None:
         from edge.io.mcap import RecordingReader
-        from edge.runtime.pipeline import stack_layout
+        from edge.runtime.pipeline import pipeline_kind, profile_layout, stack_layout
 
         self.path = os.fspath(path)
         self.reader = RecordingReader(self.path, expected_profile=profile, strict=False)
@@ -35,7 +37,9 @@ class ReplaySensor:
         cam = self.profile.camera
         self.info = SensorInfo(name="replay", width=cam.width, height=cam.height, bits=cam.bits,
                                fps=0.0 if max_speed else cam.rate_hz, n_code_frames=n, source_length=L,
-                               metadata={"backend": "replay", "path": self.path, **self.reader.sensor_metadata})
+                               metadata={"backend": "replay", "path": self.path, **self.reader.sensor_metadata},
+                               layout=profile_layout(self.profile))
+        self.events = pipeline_kind(self.profile) == "event-dots"
         self.max_speed = max_speed
         self._frames: queue.Queue = queue.Queue(maxsize=256)
         self._masked: dict[int, list[Frame]] = {}
@@ -46,26 +50,41 @@ class ReplaySensor:
         self._t0_rec: int | None = None
         self.problem: str | None = None
 
+    def _records(self):
+        """Frames (or, for an event recording, `EventSlice` records) in file order."""
+        if self.events:
+            from edge.runtime.event_record import event_stacks
+
+            for _, slices, _ in event_stacks(self.reader):
+                yield from slices
+            return
+        for recorded in self.reader.stacks():
+            for f in recorded.frames:
+                yield Frame(f.image, int(f.sequence), int(f.timestamp_ns), float(f.exposure_us),
+                            int(f.projector_frame), int(f.stack))
+
+    def _put(self, frame) -> bool:
+        while not self._stop.is_set():
+            try:
+                self._frames.put(frame, timeout=0.1)
+                return True
+            except queue.Full:
+                continue
+        return False
+
     def _load(self) -> None:
         try:
-            for recorded in self.reader.stacks():
-                for f in recorded.frames:
-                    frame = Frame(f.image, int(f.sequence), int(f.timestamp_ns), float(f.exposure_us),
-                                  int(f.projector_frame), int(f.stack))
-                    if parse_projector_frame(frame.projector_frame).edc_round:
-                        with self._lock:
-                            self._masked.setdefault(frame.stack, []).append(frame)
-                        continue
-                    while not self._stop.is_set():
-                        try:
-                            self._frames.put(frame, timeout=0.1)
-                            break
-                        except queue.Full:
-                            continue
-                    if self._stop.is_set():
-                        return
+            for frame in self._records():
+                if parse_projector_frame(frame.projector_frame).edc_round:
+                    with self._lock:
+                        self._masked.setdefault(frame.stack, []).append(frame)
+                    continue
+                if not self._put(frame):
+                    return
+        except ValueError as exc:  # a malformed event message: end of the readable part
+            self.problem = str(exc)
         finally:
-            self.problem = self.reader.problem
+            self.problem = self.problem or self.reader.problem
             self._frames.put(None)
 
     def start(self) -> None:
@@ -88,8 +107,7 @@ class ReplaySensor:
             wait = (self._t0_host + offset - time.time_ns()) / 1e9
             if wait > 0:
                 time.sleep(wait)
-        return Frame(frame.image, frame.sequence, self._t0_host + offset, frame.exposure_us,
-                     frame.projector_frame, frame.stack)
+        return dataclasses.replace(frame, timestamp_ns=self._t0_host + offset)
 
     def capture_masked(self, stack: int, edc_round: int, projector_rows: np.ndarray) -> list[Frame]:
         with self._lock:

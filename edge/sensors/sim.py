@@ -13,6 +13,10 @@ rendered).  A render thread works one stack ahead.  ``poses=K`` pre-renders K st
 motion period and cycles through them (fresh sequence numbers and timestamps), so that a benchmark
 measures the service and not the simulator.  Masked frames for the adaptive EDC loop are rendered
 on request for the scene of the stack that asked (`capture_masked`).
+
+`PacedSensor` holds the machinery (render thread, pacing, poses, scene per stack) shared with the
+other simulated backends: `edge.sensors.dots` (dot projector), `edge.sensors.curtain` (light
+curtain) and `edge.sensors.event` (event camera).
 """
 
 from __future__ import annotations
@@ -63,53 +67,37 @@ def stack_projector_rows(code, width: int, stripe: int, source: str) -> np.ndarr
     return rows
 
 
-class SimSensor:
-    """Simulated projector-camera sensor for a 'columns' profile (see module docstring).
+class PacedSensor:
+    """Common machinery of the simulated backends: a render thread one stack ahead, real-time
+    pacing at ``camera.rate_hz`` (or ``max_speed``), ``poses`` caching, the scene snapshot per stack.
 
-    stacks: end of stream after this many stacks (None = endless).  max_speed: no pacing.
-    poses: pre-render this many stacks and cycle them (0 = render every stack live).
+    Subclasses set ``self.info`` / ``self.schedule`` / ``self.geometry`` before calling
+    `_init_stream`, implement ``_render(stack, rng) -> sequence of per-frame payloads`` and may
+    override ``_record(payload, position, stack, sequence)`` (default: a `Frame` of the image).
     """
 
-    def __init__(self, profile, *, stacks: int | None = None, max_speed: bool = False, poses: int = 0,
-                 first_stack: int = 0) -> None:
-        from edge.codes import get_code
+    profile = None
+    info: SensorInfo
+    schedule: np.ndarray
 
-        if profile.projector.kind != "columns":
-            raise ValueError(f"the sim sensor renders 'columns' projectors, profile {profile.name!r} has "
-                             f"projector.kind = {profile.projector.kind!r}")
+    def _init_stream(self, profile, *, stacks: int | None, max_speed: bool, poses: int, first_stack: int) -> None:
         if stacks is not None and stacks < 1:
             raise ValueError(f"stacks must be >= 1, got {stacks}")
         if poses < 0:
             raise ValueError(f"poses must be >= 0, got {poses}")
         self.profile = profile
-        self.code = get_code(profile.code.name)
-        source = profile.code.source if profile.code.source and "0" in profile.code.source else ""
-        self.source = source
-        L = max(1, len(source))
-        cam = profile.camera
-        self.info = SensorInfo(
-            name="sim", width=cam.width, height=cam.height, bits=cam.bits,
-            fps=0.0 if max_speed else cam.rate_hz, n_code_frames=self.code.n, source_length=L,
-            metadata={"backend": "sim", "scene": profile.sim.scene, "seed": str(profile.sim.seed)})
-        self.schedule = stack_schedule(self.code.n, L)
-        self.rows = stack_projector_rows(self.code, profile.projector.width, profile.projector.stripe, source)
-        self.geometry = sim_geometry(profile)
-        self.camera = sim_camera(profile)
-        # fixed total exposure (edge.sim convention): every frame of the stack gets total / n
-        self.frame_exposure = self.camera.frame_exposure(self.code.n)
         self.max_stacks = stacks
         self.max_speed = max_speed
         self.poses = int(poses)
         self._next_stack = int(first_stack)
         self._scenes: OrderedDict[int, object] = OrderedDict()
-        self._pose_cache: dict[int, np.ndarray] = {}
+        self._pose_cache: dict[int, object] = {}
         self._rendered: queue.Queue = queue.Queue(maxsize=2)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._pending: list[np.ndarray] = []
+        self._pending: list = []
         self._pending_stack = -1
         self._sequence = 0
-        self._masked_sequence = 0  # masked EDC frames are numbered -1, -2, ... (outside the stream)
         self._t0 = 0.0
         self._emitted = 0
         self._lock = threading.Lock()
@@ -135,21 +123,127 @@ class SimSensor:
                 self._scenes.popitem(last=False)
         return s
 
+    def _render(self, stack: int, rng: np.random.Generator):
+        raise NotImplementedError
+
+    def render_stack(self, stack: int):
+        """The per-frame payloads of ``stack`` (deterministic in profile and stack)."""
+        key = stack % self.poses if self.poses else None
+        if key is not None and key in self._pose_cache:
+            return self._pose_cache[key]
+        rng = np.random.default_rng([int(self.profile.sim.seed), int(key if key is not None else stack)])
+        out = self._render(stack, rng)
+        if key is not None:
+            self._pose_cache[key] = out
+        return out
+
+    def _record(self, payload, position: int, stack: int, sequence: int):
+        return Frame(payload, sequence, time.time_ns(), self.profile.camera.exposure_us,
+                     int(self.schedule[position]), stack)
+
+    def _render_loop(self) -> None:
+        stack = self._next_stack
+        try:
+            while not self._stop.is_set():
+                if self.max_stacks is not None and stack - self._next_stack >= self.max_stacks:
+                    self._rendered.put(None)
+                    return
+                payloads = self.render_stack(stack)
+                while not self._stop.is_set():
+                    try:
+                        self._rendered.put((stack, payloads), timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                stack += 1
+        except Exception as exc:  # surfaced by read()
+            self._rendered.put(exc)
+
+    # -- Sensor protocol ----------------------------------------------------------------------
+    def start(self) -> None:
+        self._stop.clear()
+        self._t0 = time.monotonic()
+        self._emitted = 0
+        self._thread = threading.Thread(target=self._render_loop, name="edge-sim-render", daemon=True)
+        self._thread.start()
+
+    def read(self, timeout_s: float = 1.0):
+        if self._thread is None:
+            raise ValueError(f"{type(self).__name__}.read called before start()")
+        if not self._pending:
+            try:
+                item = self._rendered.get(timeout=timeout_s)
+            except queue.Empty:
+                return None
+            if item is None:
+                raise EndOfStream()
+            if isinstance(item, Exception):
+                raise item
+            self._pending_stack, payloads = item
+            self._pending = list(payloads)
+        if not self.max_speed:
+            due = self._t0 + self._emitted / self.profile.camera.rate_hz
+            wait = due - time.monotonic()
+            if wait > timeout_s:
+                time.sleep(timeout_s)
+                return None
+            if wait > 0:
+                time.sleep(wait)
+            elif wait < -1.0:  # renderer fell far behind: restart the clock instead of bursting
+                self._t0 = time.monotonic() - self._emitted / self.profile.camera.rate_hz
+        position = len(self.schedule) - len(self._pending)
+        payload = self._pending.pop(0)
+        frame = self._record(payload, position, self._pending_stack, self._sequence)
+        self._sequence += 1
+        self._emitted += 1
+        return frame
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=10)
+
+
+class SimSensor(PacedSensor):
+    """Simulated projector-camera sensor for a 'columns' profile (see module docstring).
+
+    stacks: end of stream after this many stacks (None = endless).  max_speed: no pacing.
+    poses: pre-render this many stacks and cycle them (0 = render every stack live).
+    """
+
+    def __init__(self, profile, *, stacks: int | None = None, max_speed: bool = False, poses: int = 0,
+                 first_stack: int = 0) -> None:
+        from edge.codes import get_code
+
+        if profile.projector.kind != "columns":
+            raise ValueError(f"the sim sensor renders 'columns' projectors, profile {profile.name!r} has "
+                             f"projector.kind = {profile.projector.kind!r}")
+        self.code = get_code(profile.code.name)
+        source = profile.code.source if profile.code.source and "0" in profile.code.source else ""
+        self.source = source
+        L = max(1, len(source))
+        cam = profile.camera
+        self.info = SensorInfo(
+            name="sim", width=cam.width, height=cam.height, bits=cam.bits,
+            fps=0.0 if max_speed else cam.rate_hz, n_code_frames=self.code.n, source_length=L,
+            metadata={"backend": "sim", "scene": profile.sim.scene, "seed": str(profile.sim.seed)})
+        self.schedule = stack_schedule(self.code.n, L)
+        self.rows = stack_projector_rows(self.code, profile.projector.width, profile.projector.stripe, source)
+        self.geometry = sim_geometry(profile)
+        self.camera = sim_camera(profile)
+        # fixed total exposure (edge.sim convention): every frame of the stack gets total / n
+        self.frame_exposure = self.camera.frame_exposure(self.code.n)
+        self._masked_sequence = 0  # masked EDC frames are numbered -1, -2, ... (outside the stream)
+        self._init_stream(profile, stacks=stacks, max_speed=max_speed, poses=poses, first_stack=first_stack)
+
     def _capture(self, scene, rows: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         from edge.sim import capture
 
         return capture(scene, rows, self.camera, rng=rng, exposure=self.frame_exposure)
 
-    def render_stack(self, stack: int) -> np.ndarray:
-        """(frames_per_stack, H, W) camera images of ``stack`` (deterministic in profile and stack)."""
-        key = stack % self.poses if self.poses else None
-        if key is not None and key in self._pose_cache:
-            return self._pose_cache[key]
-        rng = np.random.default_rng([int(self.profile.sim.seed), int(key if key is not None else stack)])
-        images = self._capture(self.scene(stack), self.rows, rng)
-        if key is not None:
-            self._pose_cache[key] = images
-        return images
+    def _render(self, stack: int, rng: np.random.Generator) -> np.ndarray:
+        """(frames_per_stack, H, W) camera images of ``stack``."""
+        return self._capture(self.scene(stack), self.rows, rng)
 
     def capture_masked(self, stack: int, edc_round: int, projector_frames: np.ndarray) -> list[Frame]:
         """Render masked projector frames for the scene of ``stack`` (adaptive EDC loop).
@@ -175,66 +269,3 @@ class SimSensor:
             out.append(Frame(img, self._masked_sequence, now, self.profile.camera.exposure_us,
                              projector_frame_id(base, edc_round=edc_round), stack))
         return out
-
-    def _render_loop(self) -> None:
-        stack = self._next_stack
-        try:
-            while not self._stop.is_set():
-                if self.max_stacks is not None and stack - self._next_stack >= self.max_stacks:
-                    self._rendered.put(None)
-                    return
-                images = self.render_stack(stack)
-                while not self._stop.is_set():
-                    try:
-                        self._rendered.put((stack, images), timeout=0.1)
-                        break
-                    except queue.Full:
-                        continue
-                stack += 1
-        except Exception as exc:  # surfaced by read()
-            self._rendered.put(exc)
-
-    # -- Sensor protocol ----------------------------------------------------------------------
-    def start(self) -> None:
-        self._stop.clear()
-        self._t0 = time.monotonic()
-        self._emitted = 0
-        self._thread = threading.Thread(target=self._render_loop, name="edge-sim-render", daemon=True)
-        self._thread.start()
-
-    def read(self, timeout_s: float = 1.0) -> Frame | None:
-        if self._thread is None:
-            raise ValueError("SimSensor.read called before start()")
-        if not self._pending:
-            try:
-                item = self._rendered.get(timeout=timeout_s)
-            except queue.Empty:
-                return None
-            if item is None:
-                raise EndOfStream()
-            if isinstance(item, Exception):
-                raise item
-            self._pending_stack, images = item
-            self._pending = list(images)
-        if not self.max_speed:
-            due = self._t0 + self._emitted / self.profile.camera.rate_hz
-            wait = due - time.monotonic()
-            if wait > timeout_s:
-                time.sleep(timeout_s)
-                return None
-            if wait > 0:
-                time.sleep(wait)
-            elif wait < -1.0:  # renderer fell far behind: restart the clock instead of bursting
-                self._t0 = time.monotonic() - self._emitted / self.profile.camera.rate_hz
-        position = len(self.schedule) - len(self._pending)
-        image = self._pending.pop(0)
-        frame = Frame(image, self._sequence, time.time_ns(), self.profile.camera.exposure_us,
-                      int(self.schedule[position]), self._pending_stack)
-        self._sequence += 1
-        self._emitted += 1
-        return frame
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=10)

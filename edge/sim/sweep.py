@@ -13,10 +13,27 @@ Experiments (names used in rows and file names):
 - ``arrangement``: Gray- vs binary-ordered messages into the same encoder, defocus blur 0.5 px.
 - ``nary``: ternary Golay (12,6,6) and RS(7,3) over GF(8) vs uncoded ternary / 8-ary and
   binary Gray of similar resolution (729 columns stripe 1, 512 columns stripe 2).
+- ``levels``: where the decoder's on/off levels come from, for gray-10, ecc-22-10, ecc-63-10
+  (sigma_s = 0.04): the single calibration frames at exposure T/n as captured
+  (``calibration``), refitted from the code frames (``refined``, `edge.decode.levels`), or
+  noise-free calibration frames (``oracle``, a bound).
+- ``bits8``: soft_quant's codes at sigma_s = 0.015 with an 8-bit camera (quantisation).
 
-A decoder function has the signature ``decoder(capture, code, method, band) -> (column, valid)``
-with ``band = (min_disparity, max_disparity)``; `edge_decoder` wraps `edge.decode.decode`.  A
-decoder with a ``methods`` attribute only gets points whose method is in it.
+Camera: 12 bits by default (`SweepConfig.bits`): the paper's regime is shot-noise dominated and
+its real camera is a 12-bit Basler; at 8 bits the quantisation step (1/255, sigma 0.0011) is
+comparable to the shot noise of the dim T/63 frames of ecc-63-10 and to the read noise, which
+the ``bits8`` experiment shows.  12 and 16 bits give the same error rates within 0.1-0.5 points.
+
+Levels: `SweepConfig.levels` (default ``"refined"``) for every experiment but ``levels``.
+
+Every row also holds the error rate per albedo band (`BANDS`).
+
+A decoder function has the signature ``decoder(capture, code, method, band, levels) ->
+(column, valid)`` with ``band = (min_disparity, max_disparity)`` and ``levels`` one of
+``"calibration"``, ``"refined"`` (the capture's white/black are used either way; for
+``"oracle"`` the sweep passes noise-free calibration frames and ``"calibration"``);
+`edge_decoder` wraps `edge.decode.decode` / `edge.decode.levels.decode_refined`.  A decoder
+with a ``methods`` attribute only gets points whose method is in it.
 """
 
 from __future__ import annotations
@@ -24,7 +41,8 @@ from __future__ import annotations
 import inspect
 import json
 import time
-from dataclasses import dataclass, field
+import zlib
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
@@ -33,11 +51,35 @@ import numpy as np
 from ..codes import Code, get_code
 from .camera import CameraModel
 from .metrics import evaluate
-from .render import Capture, capture_code
+from .render import Capture, capture, capture_code
 from .scene import Scene
 from .scenes import make_scene
 
-Decoder = Callable[[Capture, Code, str, tuple[int, int]], tuple[np.ndarray, np.ndarray]]
+Decoder = Callable[[Capture, Code, str, tuple[int, int], str], tuple[np.ndarray, np.ndarray]]
+
+#: How `edge_decoder` is described in reports.
+DECODER_NAME = "edge.decode.decode (levels=refined: edge.decode.levels.decode_refined)"
+#: Hand-written findings in an output folder, inserted into its README.md by `write_report` callers.
+FINDINGS_FILE = "findings.md"
+
+
+def load_rows(path: Path) -> tuple[SweepConfig, list[Row]]:
+    """The config and rows of a results.json written by `write_report`."""
+    data = json.loads(Path(path).read_text())
+    cfg = SweepConfig(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in data["config"].items()})
+    return cfg, [Row(**r) for r in data["rows"]]
+
+
+def read_findings(out_dir: Path) -> str:
+    """The text of ``out_dir / FINDINGS_FILE`` ("" if there is none)."""
+    path = Path(out_dir) / FINDINGS_FILE
+    return path.read_text() if path.is_file() else ""
+
+
+#: Albedo bands of the per-band breakdown: (label, low, high), low <= albedo < high.
+BANDS = (("albedo < 0.3", 0.0, 0.3), ("0.3-0.6", 0.3, 0.6), ("> 0.6", 0.6, np.inf))
+LEVELS = ("calibration", "refined", "oracle")
+EXPERIMENTS = ("soft_quant", "decode_quant", "read_noise", "arrangement", "nary", "levels", "bits8")
 
 #: Total signal (projector + ambient) on a white surface in a frame of exposure 1 for the
 #: ratio sweeps: a + p = LEVEL, so nothing saturates in an 8-bit frame.
@@ -50,18 +92,26 @@ class SweepConfig:
 
     width: int = 320
     height: int = 240
-    seeds: tuple[int, ...] = (0, 1, 2)
-    ratios: tuple[float, ...] = tuple(float(r) for r in np.round(np.logspace(-2.0, 0.4, 7), 4))
+    seeds: tuple[int, ...] = (0, 1)
+    ratios: tuple[float, ...] = tuple(float(r) for r in np.round(np.logspace(-2.0, 0.4, 9), 4))
     read_levels: tuple[float, ...] = (0.004, 0.007, 0.012, 0.02, 0.035, 0.06, 0.1)
-    experiments: tuple[str, ...] = ("soft_quant", "decode_quant", "read_noise", "arrangement", "nary")
-    bits: int = 8
+    experiments: tuple[str, ...] = EXPERIMENTS
+    bits: int = 12
     sigma_r: float = 0.002
+    levels: str = "refined"
+
+    def __post_init__(self) -> None:
+        if self.levels not in ("calibration", "refined"):
+            raise ValueError(f"levels: expected 'calibration' or 'refined', got {self.levels!r}")
+        bad = [e for e in self.experiments if e not in EXPERIMENTS]
+        if bad:
+            raise ValueError(f"unknown experiment {bad[0]!r}; valid: {', '.join(EXPERIMENTS)}")
 
     @classmethod
-    def quick(cls) -> "SweepConfig":
-        return cls(width=160, height=120, seeds=(0,),
+    def quick(cls, **changes: Any) -> "SweepConfig":
+        return cls(**{**dict(width=160, height=120, seeds=(0,),
                    ratios=tuple(float(r) for r in np.round(np.logspace(-2.6, 0.4, 5), 4)),
-                   read_levels=(0.005, 0.015, 0.04, 0.1))
+                   read_levels=(0.005, 0.015, 0.04, 0.1)), **changes})
 
 
 def reorder(code: Code, order: str) -> Code:
@@ -83,10 +133,14 @@ def reorder(code: Code, order: str) -> Code:
 def edge_decoder() -> Decoder:
     """Decoder function backed by `edge.decode.decode` (ImportError if it is not available)."""
     from ..decode import decode  # noqa: PLC0415 - optional peer module
+    from ..decode.levels import decode_refined  # noqa: PLC0415
 
     params = set(inspect.signature(decode).parameters)
 
-    def run(cap: Capture, code: Code, method: str, band: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    def run(cap: Capture, code: Code, method: str, band: tuple[int, int],
+            levels: str = "calibration") -> tuple[np.ndarray, np.ndarray]:
+        if levels not in ("calibration", "refined"):
+            raise ValueError(f"levels: expected 'calibration' or 'refined', got {levels!r}")
         kwargs: dict[str, Any] = {"method": method, "min_disparity": band[0], "max_disparity": band[1]}
         if "stripe" in params:
             kwargs["stripe"] = cap.stripe
@@ -100,7 +154,8 @@ def edge_decoder() -> Decoder:
             for name in ("sigma_r", "sigma_s"):
                 if name in params:
                     kwargs[name] = max(getattr(cap.camera, name), 1e-4)
-        out = decode(cap.frames, cap.white, cap.black, code, **kwargs)
+        fn = decode_refined if levels == "refined" else decode
+        out = fn(cap.frames, cap.white, cap.black, code, **kwargs)
         return np.asarray(out.column), np.asarray(out.valid)
 
     return run
@@ -119,48 +174,89 @@ class Row:
     pixels: int
     seconds: float
     extra: dict[str, Any] = field(default_factory=dict)
+    #: error rate per albedo band (`BANDS` order; NaN where a band has no pixel)
+    band_error: list[float] = field(default_factory=list)
+    band_pixels: list[int] = field(default_factory=list)
 
 
 def _points(cfg: SweepConfig) -> list[tuple[str, str, float, dict[str, Any]]]:
     """(experiment, series, x, job) for every point of the sweep."""
     pts: list[tuple[str, str, float, dict[str, Any]]] = []
 
-    def ratio_cam(r: float, **kw: Any) -> CameraModel:
+    def ratio_cam(r: float, bits: int | None = None, **kw: Any) -> CameraModel:
         a = LEVEL / (1.0 + r)
-        return CameraModel(bits=cfg.bits, sigma_r=cfg.sigma_r, ambient=a, projector=LEVEL - a, **kw)
+        return CameraModel(bits=cfg.bits if bits is None else bits, sigma_r=cfg.sigma_r, ambient=a,
+                           projector=LEVEL - a, **kw)
+
+    def add(exp: str, series: str, x: float, **job: Any) -> None:
+        job.setdefault("method", "soft")
+        job.setdefault("levels", cfg.levels)
+        pts.append((exp, series, x, job))
 
     for exp in cfg.experiments:
         if exp == "soft_quant":
             for ss in (0.015, 0.04):
                 for name in ("gray-10", "ecc-15-10", "ecc-22-10", "ecc-63-10"):
                     for r in cfg.ratios:
-                        pts.append((exp, f"{name} s={ss}", r, dict(code=name, method="soft",
-                                                                    camera=ratio_cam(r, sigma_s=ss))))
+                        add(exp, f"{name} s={ss}", r, code=name, camera=ratio_cam(r, sigma_s=ss))
         elif exp == "decode_quant":
             for method in ("hard", "soft", "list", "median"):
                 for r in cfg.ratios:
-                    pts.append((exp, method, r, dict(code="ecc-22-10", method=method, camera=ratio_cam(r, sigma_s=0.04))))
+                    add(exp, method, r, code="ecc-22-10", method=method, camera=ratio_cam(r, sigma_s=0.04))
         elif exp == "read_noise":
             for name in ("gray-10", "ecc-15-10", "ecc-22-10", "ecc-63-10"):
                 for p in cfg.read_levels:
                     cam = CameraModel(bits=12, sigma_r=0.004, sigma_s=0.0, ambient=0.0, projector=p)
-                    pts.append((exp, name, p, dict(code=name, method="soft", camera=cam)))
+                    add(exp, name, p, code=name, camera=cam)
         elif exp == "arrangement":
             for name, order in (("gray-10", "gray"), ("gray-10", "binary"), ("ecc-22-10", "gray"), ("ecc-22-10", "binary")):
                 for r in cfg.ratios:
-                    pts.append((exp, f"{name} {order}-ordered", r,
-                                dict(code=name, order=order, method="soft",
-                                     camera=ratio_cam(r, sigma_s=0.04, defocus_sigma=0.5))))
+                    add(exp, f"{name} {order}-ordered", r, code=name, order=order,
+                        camera=ratio_cam(r, sigma_s=0.04, defocus_sigma=0.5))
         elif exp == "nary":
             for name, stripe in (("gray-10", 1), ("nary3-6", 1), ("ternary-golay-12-6", 1), ("gray-9", 2),
                                  ("nary8-3", 2), ("rs8-7-3", 2)):
                 for r in cfg.ratios:
-                    pts.append((exp, f"{name} x{stripe}", r, dict(code=name, stripe=stripe, method="soft",
-                                                                   camera=ratio_cam(r, sigma_s=0.04))))
+                    add(exp, f"{name} x{stripe}", r, code=name, stripe=stripe, camera=ratio_cam(r, sigma_s=0.04))
+        elif exp == "levels":
+            for name in ("gray-10", "ecc-22-10", "ecc-63-10"):
+                for lv in LEVELS:
+                    for r in cfg.ratios:
+                        add(exp, f"{name} {lv}", r, code=name, levels=lv, camera=ratio_cam(r, sigma_s=0.04))
+        elif exp == "bits8":
+            for name in ("gray-10", "ecc-22-10", "ecc-63-10"):
+                for r in cfg.ratios:
+                    add(exp, f"{name} 8-bit", r, code=name, camera=ratio_cam(r, bits=8, sigma_s=0.015))
+            for name in ("gray-10", "ecc-63-10"):  # quantisation with the plain calibration levels
+                for bits in (8, cfg.bits):
+                    for r in cfg.ratios:
+                        add(exp, f"{name} {bits}-bit calibration", r, code=name, levels="calibration",
+                            camera=ratio_cam(r, bits=bits, sigma_s=0.015))
         else:
-            raise ValueError(f"unknown experiment {exp!r}; valid: soft_quant, decode_quant, read_noise, "
-                             "arrangement, nary")
+            raise ValueError(f"unknown experiment {exp!r}; valid: {', '.join(EXPERIMENTS)}")
     return pts
+
+
+def oracle_calibration(scene: Scene, camera: CameraModel, exposure: float) -> tuple[np.ndarray, np.ndarray]:
+    """Noise-free (still quantised) white and black frames of ``scene`` at ``exposure``."""
+    wp = int(scene.geometry.projector_width)
+    stack = np.stack([np.ones(wp, np.float32), np.zeros(wp, np.float32)])
+    frames = capture(scene, stack, camera.with_(sigma_r=0.0, sigma_s=0.0), rng=0, exposure=exposure)
+    return frames[0], frames[1]
+
+
+def band_errors(column: np.ndarray, scene: Scene, stripe: int = 1) -> tuple[list[int], list[int]]:
+    """(errors, pixels) per albedo band of `BANDS` (exact-column errors, undecoded = error)."""
+    from .metrics import error_map, truth
+
+    err = error_map(np.asarray(column).astype(np.int32), scene, stripe=stripe)
+    _, gt_valid = truth(scene, stripe=stripe)
+    errs, npx = [], []
+    for _, lo, hi in BANDS:
+        m = gt_valid & (scene.albedo >= lo) & (scene.albedo < hi)
+        errs.append(int((err & m).sum()))
+        npx.append(int(m.sum()))
+    return errs, npx
 
 
 def run_sweep(cfg: SweepConfig, decoder: Decoder, *, progress: bool = True) -> list[Row]:
@@ -181,13 +277,26 @@ def run_sweep(cfg: SweepConfig, decoder: Decoder, *, progress: bool = True) -> l
             base = get_code(job["code"])
             codes[key] = reorder(base, job["order"]) if job.get("order") else base
         code = codes[key]
+        # the same capture (code, order, stripe, camera) gets the same noise in every experiment
+        # and for every decoding method / level source, so those comparisons are paired
+        noise_key = zlib.crc32(repr((job["code"], job.get("order", ""), job.get("stripe", 1), job["camera"])).encode())
         errs, wrong, dec, rmse, wv, npx = [], [], [], [], [], 0
+        b_err, b_px = np.zeros(len(BANDS), np.int64), np.zeros(len(BANDS), np.int64)
         t0 = time.perf_counter()
         for j, scene in enumerate(scenes):
-            rng = np.random.default_rng([cfg.seeds[j], i])
-            cap = capture_code(scene, code, job["camera"], rng=rng, stripe=job.get("stripe", 1))
-            column, valid = decoder(cap, code, job["method"], scene.disparity_band(margin=4))
-            m = evaluate(np.asarray(column).astype(np.int32), scene, valid=valid, stripe=job.get("stripe", 1))
+            rng = np.random.default_rng([cfg.seeds[j], noise_key])
+            stripe = job.get("stripe", 1)
+            cap = capture_code(scene, code, job["camera"], rng=rng, stripe=stripe)
+            levels = job["levels"]
+            if levels == "oracle":
+                white, black = oracle_calibration(scene, job["camera"], cap.exposure)
+                cap = replace(cap, white=white, black=black)
+                levels = "calibration"
+            column, valid = decoder(cap, code, job["method"], scene.disparity_band(margin=4), levels)
+            m = evaluate(np.asarray(column).astype(np.int32), scene, valid=valid, stripe=stripe)
+            be, bp = band_errors(column, scene, stripe)
+            b_err += be
+            b_px += bp
             errs.append(m.error_rate * m.pixels)
             wrong.append(m.wrong_rate * m.pixels)
             dec.append(m.fraction_decoded * m.pixels)
@@ -197,7 +306,9 @@ def run_sweep(cfg: SweepConfig, decoder: Decoder, *, progress: bool = True) -> l
             bar.update(1)
         rows.append(Row(exp, series, float(x), float(sum(errs) / npx), float(sum(wrong) / npx), float(sum(dec) / npx),
                         float(np.nanmean(rmse)), float(sum(wv) / npx), npx, time.perf_counter() - t0,
-                        dict(code=code.name, method=job["method"], stripe=job.get("stripe", 1))))
+                        dict(code=code.name, method=job["method"], stripe=job.get("stripe", 1), levels=job["levels"],
+                             bits=job["camera"].bits),
+                        [float(e / p) if p else float("nan") for e, p in zip(b_err, b_px)], [int(p) for p in b_px]))
     bar.close()
     return rows
 
@@ -216,6 +327,11 @@ def _lookup(rows: list[Row], experiment: str, series: str, field_name: str = "er
     return {r.x: getattr(r, field_name) for r in rows if r.experiment == experiment and r.series == series}
 
 
+def _band_lookup(rows: list[Row], experiment: str, series: str, band: int) -> dict[float, float]:
+    return {r.x: r.band_error[band] for r in rows if r.experiment == experiment and r.series == series
+            and len(r.band_error) > band}
+
+
 def _ratio_stats(num: dict[float, float], den: dict[float, float], ref: dict[float, float],
                  lo: float, hi: float) -> tuple[list[float], list[float]]:
     """x values and num/den error ratios where the reference error is within [lo, hi]."""
@@ -227,13 +343,20 @@ def _ratio_stats(num: dict[float, float], den: dict[float, float], ref: dict[flo
     return xs, ratios
 
 
+def _fmt(v: Iterable[float]) -> str:
+    return ", ".join(f"{x:.2f}" for x in v)
+
+
+def _verdict(ok: bool, partly: bool = False) -> str:
+    return "yes" if ok else ("partly" if partly else "no")
+
+
 def claims(rows: list[Row]) -> list[dict[str, Any]]:
-    """The paper's claims with our figures side by side."""
+    """The paper's claims with our figures side by side: dicts with claim, paper, ours, agree
+    ("yes" / "partly" / "no") and why (the reason where we differ, from the figures)."""
     out: list[dict[str, Any]] = []
     exps = {r.experiment for r in rows}
-
-    def fmt(v: Iterable[float]) -> str:
-        return ", ".join(f"{x:.2f}" for x in v)
+    mid = 1  # index of the 0.3-0.6 albedo band
 
     if "soft_quant" in exps:
         for ss in (0.015, 0.04):
@@ -241,40 +364,70 @@ def claims(rows: list[Row]) -> list[dict[str, Any]]:
             e22 = _lookup(rows, "soft_quant", f"ecc-22-10 s={ss}")
             e63 = _lookup(rows, "soft_quant", f"ecc-63-10 s={ss}")
             xs, r = _ratio_stats(g, e22, g, 0.10, 0.70)
+            gm = _band_lookup(rows, "soft_quant", f"gray-10 s={ss}", mid)
+            em = _band_lookup(rows, "soft_quant", f"ecc-22-10 s={ss}", mid)
+            xm, rm = _ratio_stats(gm, em, gm, 0.10, 0.70)
+            xl, rl = _ratio_stats(g, e22, g, 0.005, 0.10)
+            ok = bool(r) and min(r) >= 3.0
+            part = bool(r) and max(r) >= 3.0
             out.append(dict(
                 claim=f"ECC (22,10,8) cuts the error rate >= 3x between the extremes (sigma_s={ss})",
                 paper=">= 3x where Gray error is ~10-70 %",
-                ours=f"gray/ecc-22 = [{fmt(r)}] at ratios [{fmt(xs)}]" if r else "no point with Gray error in 10-70 %",
-                agree=bool(r) and float(np.median(r)) >= 3.0,
+                ours=(f"gray/ecc-22 = [{_fmt(r)}] at ratios [{_fmt(xs)}] (Gray 10-70 %); "
+                      f"albedo 0.3-0.6 only: [{_fmt(rm)}] at [{_fmt(xm)}]; Gray 0.5-10 %: [{_fmt(rl)}] at [{_fmt(xl)}]"),
+                agree=_verdict(ok, part),
+                why=("" if ok else
+                     "the gain grows as the error falls (coding gain is an SNR shift; on a steep curve it is a "
+                     "large error ratio only below ~20 % Gray error); at Gray error 50-70 % the ECC curve is "
+                     "shifted but still high. The scene's spread of albedo mixes SNRs and flattens both "
+                     "curves; the single-albedo band shows the same trend."),
             ))
             xs, r = _ratio_stats(e22, e63, e22, 0.01, 0.70)
+            ok = bool(r) and 0.67 <= float(np.median(r)) <= 2.0
             out.append(dict(
                 claim=f"(63,10,27) only marginally better than (22,10,8) (sigma_s={ss})",
                 paper="marginal gain (curves nearly on top of each other)",
-                ours=f"ecc-22/ecc-63 = [{fmt(r)}] at ratios [{fmt(xs)}]" if r else "no point with ecc-22 error in 1-70 %",
-                agree=bool(r) and float(np.median(r)) <= 2.0,
+                ours=f"ecc-22/ecc-63 = [{_fmt(r)}] at ratios [{_fmt(xs)}]" if r else "no point with ecc-22 error in 1-70 %",
+                agree=_verdict(ok, bool(r) and 0.5 <= float(np.median(r)) <= 3.0),
+                why=("" if ok else
+                     "ecc-63's frames get exposure T/63: where its per-frame SNR is too low the longer code "
+                     "loses (see the levels and bits8 experiments for what makes it worse still)"),
             ))
     if "decode_quant" in exps:
         soft = _lookup(rows, "decode_quant", "soft")
-        soft_wrong = _lookup(rows, "decode_quant", "soft", "wrong_rate")
-        for method, need in (("list", 2.0), ("median", 2.0)):
+        ratios_by_method: dict[str, list[float]] = {}
+        for method in ("list", "median"):
             other = _lookup(rows, "decode_quant", method)
             if not other:
                 continue
-            xs, r = _ratio_stats(soft, other, soft, 0.01, 0.70)
-            _, rw = _ratio_stats(soft_wrong, _lookup(rows, "decode_quant", method, "wrong_rate"), soft, 0.01, 0.70)
+            xs, r = _ratio_stats(soft, other, soft, 0.001, 0.70)
+            ratios_by_method[method] = r
+            ok = bool(r) and float(np.median(r)) >= 2.0
             out.append(dict(
-                claim=f"{method} decoding cuts the soft-decision error >= {need:.0f}x",
-                paper=f">= {need:.0f}x (list); median slightly better than list",
-                ours=(f"soft/{method} error rate = [{fmt(r)}]; wrong-among-decoded ratio = [{fmt(rw)}] "
-                      f"at ratios [{fmt(xs)}]") if r else "no point with soft error in 1-70 %",
-                agree=bool(r) and float(np.median(r)) >= need,
+                claim=f"{method} decoding cuts the soft-decision error >= 2x (ecc-22-10, sigma_s=0.04)",
+                paper=">= 2x (list); median slightly better than list",
+                ours=f"soft/{method} = [{_fmt(r)}] at ratios [{_fmt(xs)}] (soft error 0.1-70 %)" if r else "no point",
+                agree=_verdict(ok, bool(r) and max(r) >= 2.0),
+                why=("" if ok else
+                     ("list decoding can only pick one of the top-3 candidates; where the soft error is high, "
+                      "the true column is among the top 3 for only about half of the wrong pixels, and pixels "
+                      "without two same-surface anchors within 32 px on their row are left as they are"
+                      if method == "list" else "")),
             ))
+        if "list" in ratios_by_method and "median" in ratios_by_method:
+            rl, rm = ratios_by_method["list"], ratios_by_method["median"]
+            ok = bool(rl) and float(np.median(rm)) >= float(np.median(rl))
+            out.append(dict(claim="the median filter is slightly better than list decoding",
+                            paper="median slightly lower error than list",
+                            ours=f"soft/median [{_fmt(rm)}] vs soft/list [{_fmt(rl)}]",
+                            agree=_verdict(ok),
+                            why="" if ok else "see the decode_quant table"))
         hard = _lookup(rows, "decode_quant", "hard")
         if hard:
-            xs, r = _ratio_stats(hard, soft, soft, 0.01, 0.70)
+            xs, r = _ratio_stats(hard, soft, soft, 0.001, 0.70)
             out.append(dict(claim="hard-decision decoding is worse than soft", paper="hard > soft error",
-                            ours=f"hard/soft = [{fmt(r)}] at ratios [{fmt(xs)}]", agree=bool(r) and min(r) >= 1.0))
+                            ours=f"hard/soft = [{_fmt(r)}] at ratios [{_fmt(xs)}]",
+                            agree=_verdict(bool(r) and min(r) >= 1.0), why=""))
     if "read_noise" in exps:
         g = _lookup(rows, "read_noise", "gray-10")
         for name in ("ecc-22-10", "ecc-63-10"):
@@ -283,29 +436,36 @@ def claims(rows: list[Row]) -> list[dict[str, Any]]:
             out.append(dict(
                 claim=f"{name} gives nothing when read noise dominates",
                 paper="similar or worse than Gray (gain ~1x or < 1x)",
-                ours=f"gray/{name} = [{fmt(r)}] at levels [{fmt(xs)}]" if r else "no point with Gray error in 5-95 %",
-                agree=bool(r) and float(np.median(r)) <= 1.5,
+                ours=f"gray/{name} = [{_fmt(r)}] at levels [{_fmt(xs)}]" if r else "no point with Gray error in 5-95 %",
+                agree=_verdict(bool(r) and float(np.median(r)) <= 1.5), why="",
             ))
     if "arrangement" in exps:
         gg = _lookup(rows, "arrangement", "ecc-22-10 gray-ordered")
         bb = _lookup(rows, "arrangement", "ecc-22-10 binary-ordered")
         xs, r = _ratio_stats(bb, gg, gg, 0.01, 0.9)
+        ok = bool(r) and float(np.median(r)) > 1.05
         out.append(dict(claim="Gray-ordered messages beat binary-ordered ones under defocus (ecc-22-10)",
-                        paper="encoded Gray has lower error than encoded binary",
-                        ours=f"binary/gray = [{fmt(r)}] at ratios [{fmt(xs)}]" if r else "no comparable point",
-                        agree=bool(r) and float(np.median(r)) > 1.0))
+                        paper="encoded Gray has lower error than encoded binary (real captures)",
+                        ours=f"binary/gray = [{_fmt(r)}] at ratios [{_fmt(xs)}]" if r else "no comparable point",
+                        agree=_verdict(ok),
+                        why=("" if ok else
+                             "not reproduced in simulation: the paper's evidence is real captures, whose artifacts "
+                             "at 0-1 jumps our simulator models only as a 0.5 px Gaussian defocus; with it, off-by-one "
+                             "errors are a small share of the ECC errors (about 1 point in 6-9 % at ratio 0.4), and "
+                             "the two orders differ by no more than they do without defocus")))
     if "nary" in exps:
         for coded, plain, binary in (("ternary-golay-12-6 x1", "nary3-6 x1", "gray-10 x1"),
                                      ("rs8-7-3 x2", "nary8-3 x2", "gray-9 x2")):
             c, p, b = (_lookup(rows, "nary", s) for s in (coded, plain, binary))
             xs, r1 = _ratio_stats(p, c, p, 0.05, 0.95)
             _, r2 = _ratio_stats(c, b, p, 0.05, 0.95)
+            ok = bool(r1) and float(np.median(r1)) > 1.0 and float(np.median(r2)) >= 0.9  # "similar or worse"
             out.append(dict(
                 claim=f"{coded.split()[0]}: better than uncoded {plain.split()[0]}, not better than {binary.split()[0]}",
                 paper="N-ary ECC < uncoded N-ary error, but >= binary Gray error",
-                ours=(f"uncoded/coded = [{fmt(r1)}]; coded/binary = [{fmt(r2)}] at ratios [{fmt(xs)}]"
+                ours=(f"uncoded/coded = [{_fmt(r1)}]; coded/binary = [{_fmt(r2)}] at ratios [{_fmt(xs)}]"
                       if r1 else "no comparable point"),
-                agree=bool(r1) and float(np.median(r1)) > 1.0 and float(np.median(r2)) >= 0.9,  # "similar or worse"
+                agree=_verdict(ok), why="",
             ))
     return out
 
@@ -316,6 +476,8 @@ _TITLES = {
     "read_noise": ("Read-noise regime: no ambient, sigma_r = 0.004, 12 bit (appendix B)", "projector level (exposure 1)"),
     "arrangement": ("Gray vs binary message order, defocus 0.5 projector px (appendix C)", "projector / ambient ratio"),
     "nary": ("N-ary codes vs binary Gray (appendix D)", "projector / ambient ratio"),
+    "levels": ("Where the on/off levels come from, sigma_s = 0.04 (diagnostic)", "projector / ambient ratio"),
+    "bits8": ("8-bit camera, sigma_s = 0.015 (compare soft_quant's s=0.015 rows)", "projector / ambient ratio"),
 }
 
 
@@ -329,7 +491,7 @@ def plot(rows: list[Row], experiment: str, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     for name, pts in series.items():
         xs, ys = zip(*pts)
-        style = "--" if "s=0.015" in name else "-"
+        style = "--" if ("s=0.015" in name or "calibration" in name) else (":" if "oracle" in name else "-")
         ax.plot(xs, [100 * y for y in ys], style, marker="o", ms=3, label=name)
     title, xlabel = _TITLES.get(experiment, (experiment, "x"))
     ax.set_xscale("log")
@@ -344,33 +506,54 @@ def plot(rows: list[Row], experiment: str, path: Path) -> None:
     plt.close(fig)
 
 
+def _table(xs: list[float], named: Iterable[tuple[str, dict[float, float]]]) -> list[str]:
+    lines = ["| series | " + " | ".join(f"{x:g}" for x in xs) + " |", "|---|" + "---|" * len(xs)]
+    for name, d in named:
+        lines.append(f"| {name} | " + " | ".join(
+            (f"{100 * d[x]:.1f}" if np.isfinite(d[x]) else "-") if x in d else "" for x in xs) + " |")
+    return lines
+
+
 def write_report(rows: list[Row], out_dir: Path, cfg: SweepConfig, *, command: str, decoder_name: str,
-                 seconds: float) -> Path:
-    """Write results.json, one PNG per experiment and README.md (tables + claims) into ``out_dir``."""
+                 seconds: float, preamble: str = "") -> Path:
+    """Write results.json, one PNG per experiment and README.md (claims + tables) into ``out_dir``.
+
+    preamble: markdown inserted after the header (e.g. the findings of a study of the figures).
+    """
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "results.json").write_text(json.dumps(
         {"config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in cfg.__dict__.items()},
-         "rows": [r.__dict__ for r in rows]}, indent=1))
+         "bands": [b[0] for b in BANDS], "seconds": seconds, "rows": [r.__dict__ for r in rows]}, indent=1))
+    px = [r.band_pixels for r in rows if r.band_pixels and r.experiment != "nary"]
+    share = (np.sum(px, axis=0) / np.sum(px)) if px else np.zeros(len(BANDS))
     lines = [
         "# Evaluation sweep: error rates on simulated `flying` scenes",
         "",
         f"Command: `{command}`  ",
         f"Decoder: {decoder_name}; scenes: flying seeds {list(cfg.seeds)} at {cfg.width}x{cfg.height}; "
-        f"{sum(r.pixels for r in rows) // max(len(rows), 1)} ground-truth pixels per point; "
+        f"{sum(r.pixels for r in rows) // max(len(rows), 1)} ground-truth pixels per point "
+        f"(albedo bands {', '.join(f'{b[0]}: {100 * f:.0f} %' for b, f in zip(BANDS, share))}); "
         f"run time {seconds:.0f} s.",
         "",
         "Error rate = fraction of projector-lit pixels whose decoded column is not exactly the true one "
-        "(undecoded pixels count as errors). Fixed total exposure: an n-frame code gets exposure 10/n per "
-        f"frame. Ratio sweeps keep projector + ambient = {LEVEL} (white surface, exposure 1), 8-bit "
-        f"camera, sigma_r = {cfg.sigma_r}.",
+        "(undecoded pixels count as errors; the decoder is asked to decode every pixel). Fixed total "
+        "exposure: an n-frame code gets exposure 10/n per frame, and so do its white and black "
+        f"calibration frames. Ratio sweeps keep projector + ambient = {LEVEL} (white surface, exposure 1); "
+        f"camera {cfg.bits} bits (bits8: 8 bits; read_noise: 12 bits, sigma_r = 0.004), sigma_r = {cfg.sigma_r}; decoder levels: "
+        f"{cfg.levels} (except the levels experiment). The same capture gets the same noise in every "
+        "experiment and for every decoding method, so comparisons are paired.",
         "",
+    ]
+    if preamble:
+        lines += [preamble.strip(), ""]
+    lines += [
         "## Paper claims vs our figures",
         "",
-        "| claim | paper | ours | agree |",
-        "|---|---|---|---|",
+        "| claim | paper | ours | agree | why not |",
+        "|---|---|---|---|---|",
     ]
     for c in claims(rows):
-        lines.append(f"| {c['claim']} | {c['paper']} | {c['ours']} | {'yes' if c['agree'] else 'no'} |")
+        lines.append(f"| {c['claim']} | {c['paper']} | {c['ours']} | {c['agree']} | {c['why']} |")
     for exp in cfg.experiments:
         series = _series(rows, exp)
         if not series:
@@ -379,19 +562,15 @@ def write_report(rows: list[Row], out_dir: Path, cfg: SweepConfig, *, command: s
         plot(rows, exp, out_dir / png)
         xs = sorted({x for pts in series.values() for x, _ in pts})
         title, xlabel = _TITLES.get(exp, (exp, "x"))
-        lines += ["", f"## {title}", "", f"![{exp}]({png})", "",
-                  f"Error rate (%) by {xlabel}:", "",
-                  "| series | " + " | ".join(f"{x:g}" for x in xs) + " |",
-                  "|---|" + "---|" * len(xs)]
-        for name, pts in series.items():
-            d = dict(pts)
-            lines.append(f"| {name} | " + " | ".join(f"{100 * d[x]:.1f}" if x in d else "" for x in xs) + " |")
+        lines += ["", f"## {title}", "", f"![{exp}]({png})", "", f"Error rate (%) by {xlabel}:", ""]
+        lines += _table(xs, ((name, dict(pts)) for name, pts in series.items()))
         if exp == "decode_quant":
-            lines += ["", "Wrong among decoded (%) (pixels the decoder rejects, column -1, not counted):", "",
-                      "| series | " + " | ".join(f"{x:g}" for x in xs) + " |", "|---|" + "---|" * len(xs)]
-            for name in series:
-                d = _lookup(rows, exp, name, "wrong_rate")
-                lines.append(f"| {name} | " + " | ".join(f"{100 * d[x]:.1f}" if x in d else "" for x in xs) + " |")
+            lines += ["", "Wrong among all pixels (%) (decoded to a wrong column; the rest of the error is "
+                      "pixels the method leaves undecoded, column -1):", ""]
+            lines += _table(xs, ((name, _lookup(rows, exp, name, "wrong_rate")) for name in series))
+        lines += ["", "Error rate (%) by albedo band:", ""]
+        lines += _table(xs, ((f"{name} [{label}]", _band_lookup(rows, exp, name, b))
+                             for b, (label, _, _) in enumerate(BANDS) for name in series))
     path = out_dir / "README.md"
     path.write_text("\n".join(lines) + "\n")
     return path

@@ -106,6 +106,10 @@ def _foreign_irradiance(scene: Scene, dots: np.ndarray, baseline_m: float) -> np
     return out
 
 
+#: Public name of `_foreign_irradiance` (used by the service's event backend, `edge.sensors.event`).
+foreign_irradiance = _foreign_irradiance
+
+
 def _state(bits: np.ndarray, slot_us: float, phase_us: float, t: np.ndarray) -> np.ndarray:
     idx = np.floor((t - phase_us) / slot_us).astype(np.int64) % bits.size
     return bits[idx].astype(np.float64)

@@ -1,0 +1,159 @@
+"""Order prior, confidence median filter and decision-directed levels (edge.decode.spatial / levels)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from edge.codes import get_code
+from edge.decode import decode
+from edge.decode.levels import decode_refined, initial_levels, refine_levels
+from edge.decode.spatial import confidence_median, order_prior
+
+
+def _ramp_row(width: int, offset: int = 100) -> tuple[np.ndarray, np.ndarray]:
+    """One row on a fronto-parallel surface: column = x + offset (disparity -offset), all high confidence."""
+    cand = np.full((1, width, 3), -1, np.int32)
+    cand[0, :, 0] = np.arange(width) + offset
+    cand[0, :, 1] = np.arange(width) + offset + 400
+    return cand, np.full((1, width), 0.9, np.float32)
+
+
+def test_order_prior_fixes_a_swap_between_anchors_on_one_surface():
+    cand, conf = _ramp_row(20)
+    # x = 9: top-1 is a far column, the true one (109) is its third candidate
+    cand[0, 9] = [700, 55, 109]
+    conf[0, 9] = 0.05
+    # x = 10: the second candidate lies between the anchors but far from the interpolation (110)
+    cand[0, 10] = [3, 118, 500]
+    conf[0, 10] = 0.05
+    col, valid = order_prior(cand, conf, np.ones((1, 20), bool), t_high=0.5, t_low=0.0, tol=2)
+    assert col[0, 9] == 109 and valid[0, 9]
+    assert not valid[0, 10]  # no candidate fits: invalid, not a guess
+    other = np.r_[0:9, 11:20]
+    assert (col[0, other] == cand[0, other, 0]).all() and valid[0, other].all()
+
+
+def test_order_prior_leaves_pixels_between_different_surfaces_alone():
+    cand, conf = _ramp_row(20)
+    cand[0, 10:, 0] += 30  # a depth step at x = 10: disparity jumps by 30
+    cand[0, 9] = [700, 112, 109]
+    conf[0, 9] = 0.05
+    col, valid = order_prior(cand, conf, np.ones((1, 20), bool), t_high=0.5, t_low=0.0)
+    assert col[0, 9] == 700 and valid[0, 9]  # anchors 8 and 10 are on two surfaces: no constraint
+    col, valid = order_prior(cand, conf, np.ones((1, 20), bool), t_high=0.5, t_low=0.1)
+    assert not valid[0, 9]  # ... and below t_low it is invalid
+
+
+def test_order_prior_ignores_an_isolated_wrong_anchor():
+    cand, conf = _ramp_row(30)
+    conf[0, 11:20] = 0.05
+    cand[0, 14, 0] = 900  # confident but wrong, and alone: not an anchor
+    conf[0, 14] = 0.95
+    cand[0, 13] = [850, 113, 1]
+    cand[0, 16] = [960, 1, 116]
+    col, valid = order_prior(cand, conf, np.ones((1, 30), bool), t_high=0.5, t_low=0.0)
+    assert col[0, 13] == 113 and col[0, 16] == 116 and valid[0, 13] and valid[0, 16]
+    assert col[0, 14] == 900 and valid[0, 14]  # high-confidence pixels are never changed
+
+
+def test_order_prior_never_changes_high_confidence_pixels():
+    rng = np.random.default_rng(0)
+    cand = rng.integers(0, 1024, (12, 40, 3)).astype(np.int32)
+    conf = rng.random((12, 40)).astype(np.float32)
+    ok = rng.random((12, 40)) > 0.1
+    col, valid = order_prior(cand, conf, ok, t_high=0.5, t_low=0.1)
+    hi = ok & (conf >= 0.5)
+    assert (col[hi] == cand[..., 0][hi]).all() and valid[hi].all()
+    assert not valid[~ok].any()
+    # a chosen column is always one of the pixel's candidates
+    assert (col[valid][:, None] == cand[valid]).any(axis=1).all()
+
+
+def test_median_filter_only_uses_high_confidence_votes():
+    h, w = 9, 9
+    x = np.arange(w)[None, :]
+    truth = np.broadcast_to(x + 50, (h, w)).astype(np.int32)  # disparity -50 everywhere
+    col = truth.copy()
+    conf = np.full((h, w), 0.9, np.float32)
+    # a 3x3 block of low-confidence pixels that agree with each other on a wrong column, and a
+    # row of medium-confidence pixels (below t_high, so no votes) that agree with them too
+    col[3:6, 3:6] = 500
+    conf[3:6, 3:6] = 0.01
+    col[2, 2:7] = 500
+    conf[2, 2:7] = 0.2
+    out, valid = confidence_median(col, conf, np.ones((h, w), bool), t_low=0.05, t_high=0.5)
+    # only the 0.9 pixels vote (11 in the centre's window, 14 500s do not): they say disparity -50
+    assert (out[2:6, 2:7] == truth[2:6, 2:7]).all() and valid[2:6, 2:7].all()
+    hi = conf >= 0.5
+    assert (out[hi] == col[hi]).all() and valid[hi].all()
+    # with a high t_high nobody votes: pixels keep their column, valid iff confidence >= t_low
+    out2, valid2 = confidence_median(col, conf, np.ones((h, w), bool), t_low=0.05, t_high=0.95)
+    assert (out2 == col).all() and (valid2 == (conf >= 0.05)).all()
+
+
+def test_median_filter_votes_disparity_on_a_slanted_surface():
+    h, w = 7, 11
+    x = np.arange(w)[None, :]
+    truth = np.broadcast_to(2 * x + 10, (h, w)).astype(np.int32)  # column step 2 per pixel
+    conf = np.full((h, w), 0.9, np.float32)
+    conf[:, :6] = 0.95
+    conf[:, 6:] = 0.1  # voters only on the left: a column median would lag behind
+    col = truth.copy()
+    col[3, 5] = 999
+    conf[3, 5] = 0.0
+    out, _ = confidence_median(col, conf, np.ones((h, w), bool), t_low=0.0, t_high=0.5, vote="disparity")
+    out_c, _ = confidence_median(col, conf, np.ones((h, w), bool), t_low=0.0, t_high=0.5, vote="column")
+    # disparities x - col on the left are -(x + 10), i.e. not constant: the disparity median of the
+    # voters (x = 3, 4 and 6..7 missing) gives x - med with an error of one step at most
+    assert abs(int(out[3, 5]) - int(truth[3, 5])) <= 1
+    assert abs(int(out_c[3, 5]) - int(truth[3, 5])) >= abs(int(out[3, 5]) - int(truth[3, 5]))
+
+
+def test_median_filter_prefers_a_candidate_near_the_vote():
+    h, w = 5, 5
+    col = np.full((h, w), 7, np.int32) + np.arange(w)[None, :]
+    conf = np.full((h, w), 0.9, np.float32)
+    col[2, 2] = 300
+    conf[2, 2] = 0.0
+    cand = np.full((h, w, 3), -1, np.int32)
+    cand[..., 0] = col
+    cand[2, 2] = [300, 10, 8]  # the vote predicts 9; 10 and 8 are within tol = 1, 10 ranks first
+    out, _ = confidence_median(col, conf, np.ones((h, w), bool), t_low=0.0, t_high=0.5, tol=1, candidates=cand)
+    assert out[2, 2] == 10
+    out0, _ = confidence_median(col, conf, np.ones((h, w), bool), t_low=0.0, t_high=0.5, tol=0, candidates=cand)
+    assert out0[2, 2] == 9
+
+
+def test_spatial_bad_input():
+    with pytest.raises(ValueError, match="vote"):
+        confidence_median(np.zeros((3, 3), np.int32), np.zeros((3, 3)), np.ones((3, 3), bool),
+                          t_low=0.1, t_high=0.5, vote="mean")
+    with pytest.raises(ValueError, match="candidates"):
+        order_prior(np.zeros((3, 3), np.int32), np.zeros((3, 3)), np.ones((3, 3), bool), t_high=0.5, t_low=0.1)
+
+
+def test_refined_levels_recover_the_true_levels_and_the_columns():
+    code = get_code("ecc-22-10")
+    rng = np.random.default_rng(3)
+    h, w = 24, 64
+    cols = rng.integers(0, code.size, (h, w))
+    on, off = 0.30, 0.20
+    sigma = 0.02
+    x = np.moveaxis(code.codebook[cols].astype(np.float32), -1, 0)
+    frames = (off + (on - off) * x + sigma * rng.standard_normal(x.shape)).astype(np.float32)
+    white = (on + sigma * rng.standard_normal((h, w))).astype(np.float32)
+    black = (off + sigma * rng.standard_normal((h, w))).astype(np.float32)
+    w2, b2 = refine_levels(frames, white, black, code, cols)
+    # n + 2 samples instead of one: the level error shrinks by about sqrt((n + 2) / 4)
+    assert np.std(w2 - on) < 0.5 * np.std(white - on) and np.std(b2 - off) < 0.5 * np.std(black - off)
+    kw = dict(sigma_r=sigma, sigma_s=0.0, min_contrast=0.0, min_confidence=0.0)
+    plain = (decode(frames, white, black, code, **kw).column == cols).mean()
+    refined = (decode_refined(frames, white, black, code, **kw).column == cols).mean()
+    assert refined > plain
+    # where calibration says white <= black the initial levels come from the frames
+    white[0, 0], black[0, 0] = 0.1, 0.3
+    wi, bi = initial_levels(frames, white, black)
+    assert wi[0, 0] > bi[0, 0] and abs(wi[0, 0] - on) < 0.05 and abs(bi[0, 0] - off) < 0.05
+    out = decode_refined(frames, white, black, code, **kw)
+    assert out.column[0, 0] >= 0
