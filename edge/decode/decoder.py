@@ -56,7 +56,8 @@ DEFAULTS = {
 
 #: Quantisation steps per unit of per-sample cost (ML: chi-square units; normalised: x**2 units).
 Q_SCALE = {kernels.METRIC_ML: 256.0, kernels.METRIC_NORMALIZED: 16384.0, kernels.METRIC_HARD: 1.0}
-#: With a disparity band of at most this many columns the soft kernel scans the band directly.
+#: With a disparity band of at most this many columns the soft search scans the band directly
+#: (`kernels.soft_band`); wider bands use the lane search with the band as a restriction.
 BAND_BRUTE_MAX = 256
 
 
@@ -69,7 +70,10 @@ class Decoded:
     valid: (H, W) bool (column >= 0 exactly where valid).
     candidates: (H, W, 3) int32 best three codebook rows by distance (-1 where fewer exist).
     distances: (H, W, 3) float32 their distances (inf where absent).
-    stats: counters of the search (``brute_pixels``, ``evaluated``, ``seconds``).
+    stats: counters of the search: ``path`` ("lanes", "band", "scalar", "nary", "syndrome" or
+        "hamming-search"), ``seconds``, and for the soft paths ``evaluated`` (codeword costs
+        computed, summed over pixels) and ``brute_pixels``; the "lanes" path adds
+        ``second_class_pixels`` / ``second_class_blocks`` / ``blocks`` / ``pending_blocks``.
     """
 
     column: np.ndarray

@@ -28,7 +28,29 @@ disagreement set with h has the least reliability, and the kernels search that e
    A class or sublist whose bound exceeds the current third-best cost is skipped, so the top-3
    (score | column keys, ties to the lower column) is exact.
 
-Costs are summed with 64-entry subset-sum tables over 6-bit position groups.
+Costs are summed with 64-entry subset-sum tables over 6-bit position groups.  This per-pixel
+search is `soft_binary` (the "scalar" path, any binary code).
+
+Fast paths (same keys, same ties, bit-identical results; tests compare them with `soft_binary`):
+
+* `soft_lanes` (column-linear codes, see `tables`): the same c_ref / V decomposition, but
+  LANES (= 32) consecutive pixels of a row are decoded together with V stored (n, LANES), so
+  the cost of c_ref ^ D for every lane is |D| contiguous vector adds with positions shared by
+  all lanes, the column is col(c_ref) ^ col(D), and the top-3 update is a branch-free min/max
+  network per lane.  Whole weight classes are evaluated (D = 0 and the lightest class for the
+  whole block); a lane is finished when its third-best cost is below the class bound of the
+  heavier classes (sum of the t smallest V, lanes sorted with a vectorised odd-even network);
+  the others are moved to a per-row pending block that evaluates the next classes.  On the
+  issue-4 benchmark (ecc-22-10: classes 8, 12, 16) about 5e-6 of the pixels need class 12.
+* `soft_band` (any binary code, a band of at most a few hundred columns): per pixel
+  cost(c) = C0 - sum_i (masks_t[i, c] & y_i) over the contiguous candidate columns, then a
+  16-wide min/max network.  Brute force over the band, which beats pruning when the band
+  holds a small share of the codebook.
+* `hard_lean`: hard decisions, syndrome and information bits as XORs of per-position
+  contributions over contiguous x, then one coset-leader lookup per pixel.
+
+Integer ranges: |y_i| <= Y_CLIP = 2**24, so costs (<= n * 2**24) fit int32 for
+n <= 64 (the binary limit) and keys (cost << IDX_BITS | column) fit int64.
 """
 
 from __future__ import annotations
@@ -92,23 +114,40 @@ def _band(x, use_band, min_d, max_d, stripe, ncols):
 
 
 @njit(cache=True, inline="always")
-def _sample_costs(r, ri, a, b, has_inv, metric, va, vb, la, lb):
-    """(e0, e1) of one binary sample (see module docstring)."""
+def _pixel_params(a, b, has_inv, metric, sr2, ss2):
+    """Per-pixel constants of `_sample_costs`: (1/v_white, 1/v_black, log terms la, lb,
+    1/(v_white + v_black), 1/(white - black)); reciprocals so the per-sample work has no
+    division."""
+    va = sr2 + ss2 * a
+    vb = sr2 + ss2 * b
+    la = 0.0
+    lb = 0.0
+    if metric == METRIC_ML and not has_inv:
+        la = np.log(va)
+        lb = np.log(vb)
+        m = min(la, lb)
+        la -= m
+        lb -= m
+    return 1.0 / va, 1.0 / vb, la, lb, 1.0 / (va + vb), 1.0 / (a - b)
+
+
+@njit(cache=True, inline="always")
+def _sample_costs(r, ri, a, b, has_inv, metric, iva, ivb, la, lb, ivs, idiff):
+    """(e0, e1) of one binary sample (see module docstring); constants from `_pixel_params`."""
     d = a - b
     if metric == METRIC_ML:
         if has_inv:
             s = r - ri
-            v = va + vb
-            e1 = (s - d) * (s - d) / v
-            e0 = (s + d) * (s + d) / v
+            e1 = (s - d) * (s - d) * ivs
+            e0 = (s + d) * (s + d) * ivs
         else:
-            e1 = (r - a) * (r - a) / va + la
-            e0 = (r - b) * (r - b) / vb + lb
+            e1 = (r - a) * (r - a) * iva + la
+            e0 = (r - b) * (r - b) * ivb + lb
     elif metric == METRIC_NORMALIZED:
         if has_inv:
-            x = 0.5 * ((r - ri) / d + 1.0)
+            x = 0.5 * ((r - ri) * idiff + 1.0)
         else:
-            x = (r - b) / d
+            x = (r - b) * idiff
         e1 = (x - 1.0) * (x - 1.0)
         e0 = x * x
     else:
@@ -132,16 +171,7 @@ def _quantise(e0, e1, q_scale):
 @njit(cache=True, inline="always")
 def _pixel_llr(frames, inverse, has_inv, yy, xx, n, scale, a, b, metric, sr2, ss2, q_scale, y, w):
     """Fill y (quantised e0 - e1) and w = |y| for one pixel; return (hard mask h, dmin)."""
-    va = sr2 + ss2 * a
-    vb = sr2 + ss2 * b
-    la = 0.0
-    lb = 0.0
-    if metric == METRIC_ML and not has_inv:
-        la = np.log(va)
-        lb = np.log(vb)
-        m = min(la, lb)
-        la -= m
-        lb -= m
+    iva, ivb, la, lb, ivs, idiff = _pixel_params(a, b, has_inv, metric, sr2, ss2)
     h = _U0
     dmin = 0.0
     for i in range(n):
@@ -149,7 +179,7 @@ def _pixel_llr(frames, inverse, has_inv, yy, xx, n, scale, a, b, metric, sr2, ss
         ri = 0.0
         if has_inv:
             ri = inverse[i, yy, xx] * scale
-        e0, e1 = _sample_costs(r, ri, a, b, has_inv, metric, va, vb, la, lb)
+        e0, e1 = _sample_costs(r, ri, a, b, has_inv, metric, iva, ivb, la, lb, ivs, idiff)
         dmin += min(e0, e1)
         t = _quantise(e0, e1, q_scale)
         y[i] = t
@@ -473,7 +503,7 @@ def _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
 
     Fills Y (n, LANES) int32 (= `_pixel_llr`'s y, bit for bit), dmin, active (white > black,
     inside the image, non-empty band [lo, hi]); inactive lanes get finite dummy values.
-    Scratch: R, RI (n, LANES) float64, PA (6, LANES) float64.  Returns the active lane count.
+    Scratch: R, RI (n, LANES) float64, PA (8, LANES) float64.  Returns the active lane count.
     """
     n, height, width = frames.shape
     L = LANES
@@ -495,22 +525,15 @@ def _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
             b = 0.0
         active[l] = act
         nact += np.int64(act)
-        va = sr2 + ss2 * a
-        vb = sr2 + ss2 * b
-        la = 0.0
-        lb = 0.0
-        if metric == METRIC_ML and not has_inv:
-            la = np.log(va)
-            lb = np.log(vb)
-            m = min(la, lb)
-            la -= m
-            lb -= m
+        iva, ivb, la, lb, ivs, idiff = _pixel_params(a, b, has_inv, metric, sr2, ss2)
         PA[0, l] = a
         PA[1, l] = b
-        PA[2, l] = va
-        PA[3, l] = vb
+        PA[2, l] = iva
+        PA[3, l] = ivb
         PA[4, l] = la
         PA[5, l] = lb
+        PA[6, l] = ivs
+        PA[7, l] = idiff
         dmin[l] = 0.0
     if x0 + L <= width:
         for i in range(n):
@@ -531,7 +554,7 @@ def _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
     for i in range(n):
         for l in range(L):
             e0, e1 = _sample_costs(R[i, l], RI[i, l], PA[0, l], PA[1, l], has_inv, metric,
-                                   PA[2, l], PA[3, l], PA[4, l], PA[5, l])
+                                   PA[2, l], PA[3, l], PA[4, l], PA[5, l], PA[6, l], PA[7, l])
             dmin[l] += min(e0, e1)
             Y[i, l] = np.int32(_quantise(e0, e1, q_scale))
     return nact
@@ -684,7 +707,7 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
     for yy in prange(height):
         R = np.zeros((n, L), np.float64)
         RI = np.zeros((n, L), np.float64)
-        PA = np.zeros((6, L), np.float64)
+        PA = np.zeros((8, L), np.float64)
         Y = np.zeros((n, L), np.int32)
         SYN = np.zeros(L, np.int64)
         COLH = np.zeros(L, np.int64)
@@ -850,7 +873,7 @@ def soft_band(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q
     for yy in prange(height):
         R = np.zeros((n, L), np.float64)
         RI = np.zeros((n, L), np.float64)
-        PA = np.zeros((6, L), np.float64)
+        PA = np.zeros((8, L), np.float64)
         Y = np.zeros((n, L), np.int32)
         dmin = np.zeros(L, np.float64)
         active = np.zeros(L, np.bool_)
