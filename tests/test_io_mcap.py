@@ -268,3 +268,30 @@ def test_sigkilled_writer_is_recoverable(tmp_path):
     assert [f.sequence for f in frames] == list(range(len(frames)))  # no gaps, in order
     assert all(np.array_equal(f.image, np.random.default_rng(f.sequence).integers(0, 256, (H, W), dtype=np.uint8))
                for f in frames)
+
+
+def test_recorder_extra_channel_public_api(tmp_path, profile):
+    path = tmp_path / "extra.mcap"
+    schema = b'{"type": "object"}'
+    with Recorder(path, profile) as rec:
+        cid = rec.register_channel("extra", "edge.Extra", "json", schema)
+        assert rec.register_channel("extra", "edge.Extra", "json", schema) == cid  # idempotent
+        with pytest.raises(ValueError, match="another schema"):
+            rec.register_channel("extra", "edge.Other", "json", schema)
+        with pytest.raises(ValueError, match="another schema"):
+            rec.register_channel("raw", "edge.Extra", "json", schema)  # standard leaf
+        with pytest.raises(ValueError, match="message encoding"):
+            rec.register_channel("more", "edge.Extra", "cbor", schema)
+        with pytest.raises(ValueError, match="register_channel"):
+            rec.write_message(cid + 100, b"{}", log_time_ns=1)
+        rec.write_message(cid, b'{"a": 1}', log_time_ns=5, sequence=9)
+        rec.write_message(cid, b'{"a": 2}', log_time_ns=6)
+        topic = rec.topics["extra"]
+    with pytest.raises(ValueError, match="finish"):
+        rec.write_message(cid, b"{}", log_time_ns=7)
+    assert topic == f"/{profile.zenoh.device}/extra"
+    with open(path, "rb") as f:
+        got = [(s.name, s.encoding, c.message_encoding, m.log_time, m.sequence, m.data)
+               for s, c, m in make_reader(f).iter_messages(topics=[topic])]
+    assert got == [("edge.Extra", "jsonschema", "json", 5, 9, b'{"a": 1}'),
+                   ("edge.Extra", "jsonschema", "json", 6, 0, b'{"a": 2}')]

@@ -152,11 +152,9 @@ def search(
         st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
     elif path == "lanes":
         stats = np.zeros((h, 5), np.int64)
-        restricted = bool(use_band or columns < code.size)
         kernels.soft_lanes(*args, tb.masks, tb.syn_col, tb.col_bit, tb.leader, tb.leader_col,
                            tb.has_leader, tb.cls_weight, tb.cls_start, tb.cls_pstart, tb.dpos,
-                           tb.dcol, columns, use_band, min_d, max_d, stripe, restricted,
-                           cand, dist, conf, stats)
+                           tb.dcol, columns, use_band, min_d, max_d, stripe, cand, dist, conf, stats)
         tot = stats.sum(axis=0)
         st = {"path": path, "brute_pixels": 0, "evaluated": int(tot[1]),
               "second_class_pixels": int(tot[0]), "second_class_blocks": int(tot[2]),

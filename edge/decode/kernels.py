@@ -561,13 +561,13 @@ def _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
 
 
 @njit(cache=True, inline="always")
-def _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, e_start, e_stop, p_start,
-                t, restricted):
+def _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, e_start, e_stop, p_start, t):
     """Top-3 update of LANES lanes with every codeword c_ref ^ D, D in dcol[e_start:e_stop].
 
     D has weight t and positions dpos[p_start + (e - e_start) * t ...]; its cost in lane l is
     base[l] + sum of V[pos, l]; its column colref[l] ^ dcol[e].  Keys are
-    (cost << IDX_BITS) | column; with `restricted`, columns outside [lo[l], hi[l]] are skipped.
+    (cost << IDX_BITS) | column; columns outside [lo[l], hi[l]] are skipped (a compare and a
+    select per lane: cheaper to always do than to compile a second copy).
     """
     p = p_start
     t4 = t - t % 4
@@ -599,9 +599,8 @@ def _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, e_start, e
         for l in range(LANES):
             col = colref[l] ^ md
             key = (np.int64(acc[l]) << IDX_BITS) | np.int64(col)
-            if restricted:
-                ok = (col >= lo[l]) & (col <= hi[l])
-                key = key if ok else NO_KEY
+            ok = (col >= lo[l]) & (col <= hi[l])
+            key = key if ok else NO_KEY
             a = k1[l]
             k1[l] = min(a, key)
             key = max(a, key)
@@ -652,19 +651,15 @@ def _write_none(out_col, out_dist, out_conf, yy, xx):
 
 @njit(cache=True)
 def _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, nlanes, c_first, c_stop, nclass,
-                 cls_weight, cls_start, cls_pstart, dpos, dcol, restricted):
+                 cls_weight, cls_start, cls_pstart, dpos, dcol):
     """Evaluate classes c_first, c_first + 1, ... (before c_stop) for a whole lane block, until
     the bounds lb prove the top-3 of lanes 0..nlanes-1; return the codeword evaluations per lane.
     (Not inlined: one compiled copy of the class loop serves both stages.)"""
     evaluated = 0
     c = c_first
     while c < c_stop:
-        if restricted:
-            _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, cls_start[c],
-                        cls_start[c + 1], cls_pstart[c], cls_weight[c], True)
-        else:
-            _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, cls_start[c],
-                        cls_start[c + 1], cls_pstart[c], cls_weight[c], False)
+        _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, cls_start[c],
+                    cls_start[c + 1], cls_pstart[c], cls_weight[c])
         evaluated += cls_start[c + 1] - cls_start[c]
         c += 1
         if c >= c_stop:
@@ -678,12 +673,175 @@ def _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, nlanes, c_first, 
     return evaluated
 
 
+@njit(cache=True)
+def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
+               masks, syn_col, col_bit, leader, leader_col, has_leader,
+               cls_weight, cls_start, cls_pstart, dpos, dcol,
+               ncols, use_band, min_d, max_d, stripe, out_col, out_dist, out_conf, out_stats):
+    """Row yy of `soft_lanes` (a plain function: keeps the parallel kernel small to compile)."""
+    n, height, width = frames.shape
+    nclass = cls_weight.shape[0]
+    L = LANES
+    R = np.zeros((n, L), np.float64)
+    RI = np.zeros((n, L), np.float64)
+    PA = np.zeros((8, L), np.float64)
+    Y = np.zeros((n, L), np.int32)
+    SYN = np.zeros(L, np.int64)
+    COLH = np.zeros(L, np.int64)
+    HM = np.zeros(L, np.int64)
+    E = np.zeros(L, np.int64)
+    V = np.zeros((n, L), np.int32)
+    SV = np.zeros((n, L), np.int32)
+    lb = np.zeros((nclass + 1, L), np.int64)
+    run = np.zeros(L, np.int64)
+    acc = np.zeros(L, np.int32)
+    base = np.zeros(L, np.int32)
+    colref = np.zeros(L, np.int32)
+    lo = np.zeros(L, np.int32)
+    hi = np.zeros(L, np.int32)
+    k1 = np.empty(L, np.int64)
+    k2 = np.empty(L, np.int64)
+    k3 = np.empty(L, np.int64)
+    dmin = np.zeros(L, np.float64)
+    active = np.zeros(L, np.bool_)
+    # pending block (lanes that need the heavier classes)
+    PV = np.zeros((n, L), np.int32)
+    Plb = np.zeros((nclass + 1, L), np.int64)
+    Pbase = np.zeros(L, np.int32)
+    Pcolref = np.zeros(L, np.int32)
+    Plo = np.zeros(L, np.int32)
+    Phi = np.zeros(L, np.int32)
+    Pk1 = np.empty(L, np.int64)
+    Pk2 = np.empty(L, np.int64)
+    Pk3 = np.empty(L, np.int64)
+    Pdmin = np.zeros(L, np.float64)
+    Px = np.zeros(L, np.int64)
+    npend = 0
+    n_second = 0
+    evaluated = 0
+    blocks_second = 0
+    blocks = 0
+    pend_blocks = 0
+    for x0 in range(0, width, L):
+        blocks += 1
+        nact = _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2,
+                          q_scale, yy, x0, use_band, min_d, max_d, stripe, ncols, R, RI, PA,
+                          Y, dmin, active, lo, hi)
+        # hard decision -> syndrome and column of h, lane-parallel
+        for l in range(L):
+            SYN[l] = 0
+            COLH[l] = 0
+            HM[l] = 0
+        for i in range(n):
+            sc = syn_col[i]
+            cbit = col_bit[i]
+            ibit = np.int64(1) << i
+            for l in range(L):
+                m = -np.int64(Y[i, l] > 0)
+                SYN[l] ^= sc & m
+                COLH[l] ^= cbit & m
+                HM[l] |= ibit & m
+        for l in range(L):
+            if has_leader:
+                E[l] = np.int64(leader[SYN[l]])
+                colref[l] = np.int32(COLH[l] ^ leader_col[SYN[l]])
+            else:
+                E[l] = HM[l] ^ np.int64(masks[COLH[l]])
+                colref[l] = np.int32(COLH[l])
+            base[l] = 0
+        for i in range(n):
+            for l in range(L):
+                yv = Y[i, l]
+                wv = max(yv, -yv)
+                bit = (E[l] >> i) & 1
+                V[i, l] = wv - 2 * wv * np.int32(bit)
+                base[l] += wv * np.int32(bit)
+        if nact == 0:
+            for l in range(L):
+                if x0 + l < width:
+                    _write_none(out_col, out_dist, out_conf, yy, x0 + l)
+            continue
+        for l in range(L):
+            cr = colref[l]
+            ok = (cr >= lo[l]) & (cr <= hi[l])
+            k1[l] = ((np.int64(base[l]) << IDX_BITS) | np.int64(cr)) if ok else NO_KEY
+            k2[l] = NO_KEY
+            k3[l] = NO_KEY
+        evaluated += nact
+        if nclass > 0:
+            evaluated += nact * _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, L, 0,
+                                             1, nclass, cls_weight, cls_start, cls_pstart,
+                                             dpos, dcol)
+            _class_bounds(V, SV, run, lb, n, cls_weight, nclass)
+        else:
+            for l in range(L):
+                lb[0, l] = _NO_BOUND
+        any_second = False
+        for l in range(L):
+            xx = x0 + l
+            if xx >= width:
+                continue
+            if not active[l]:
+                _write_none(out_col, out_dist, out_conf, yy, xx)
+                continue
+            cidx = 1 if nclass > 0 else 0
+            if (k3[l] >> IDX_BITS) < base[l] + lb[cidx, l]:
+                _write(out_col, out_dist, out_conf, yy, xx, k1[l], k2[l], k3[l], dmin[l], q_scale)
+                continue
+            # move lane l into the pending block
+            any_second = True
+            n_second += 1
+            p = npend
+            for i in range(n):
+                PV[i, p] = V[i, l]
+            for c in range(nclass + 1):
+                Plb[c, p] = lb[c, l]
+            Pbase[p] = base[l]
+            Pcolref[p] = colref[l]
+            Plo[p] = lo[l]
+            Phi[p] = hi[l]
+            Pk1[p] = k1[l]
+            Pk2[p] = k2[l]
+            Pk3[p] = k3[l]
+            Pdmin[p] = dmin[l]
+            Px[p] = xx
+            npend += 1
+            if npend == L:
+                evaluated += npend * _run_classes(PV, Plb, Pbase, Pcolref, Plo, Phi, Pk1, Pk2, Pk3,
+                                                  acc, npend, 1, nclass, nclass, cls_weight,
+                                                  cls_start, cls_pstart, dpos, dcol)
+                for q in range(npend):
+                    _write(out_col, out_dist, out_conf, yy, Px[q], Pk1[q], Pk2[q], Pk3[q],
+                           Pdmin[q], q_scale)
+                npend = 0
+                pend_blocks += 1
+        if any_second:
+            blocks_second += 1
+    if npend > 0:
+        for p in range(npend, L):
+            for i in range(n):
+                PV[i, p] = 0
+            Pbase[p] = 0
+            Pcolref[p] = 0
+        evaluated += npend * _run_classes(PV, Plb, Pbase, Pcolref, Plo, Phi, Pk1, Pk2, Pk3, acc,
+                                          npend, 1, nclass, nclass, cls_weight, cls_start,
+                                          cls_pstart, dpos, dcol)
+        for q in range(npend):
+            _write(out_col, out_dist, out_conf, yy, Px[q], Pk1[q], Pk2[q], Pk3[q], Pdmin[q],
+                   q_scale)
+        pend_blocks += 1
+    out_stats[yy, 0] = n_second
+    out_stats[yy, 1] = evaluated
+    out_stats[yy, 2] = blocks_second
+    out_stats[yy, 3] = blocks
+    out_stats[yy, 4] = pend_blocks
+
+
 @njit(cache=True, parallel=True)
 def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
                masks, syn_col, col_bit, leader, leader_col, has_leader,
                cls_weight, cls_start, cls_pstart, dpos, dcol,
-               ncols, use_band, min_d, max_d, stripe, restricted,
-               out_col, out_dist, out_conf, out_stats):
+               ncols, use_band, min_d, max_d, stripe, out_col, out_dist, out_conf, out_stats):
     """Exact top-3 soft decoding of a column-linear binary code, LANES pixels at a time.
 
     Per pixel: y, h, w as in the module docstring; c_ref = nearest codeword of h (coset
@@ -696,168 +854,106 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
     of the row, partial) pending blocks evaluate the next classes until every lane is done.
     Ties go to the lower column (keys (cost << IDX_BITS) | column).
 
-    restricted: some columns are excluded (band or ncols < size): keys outside [lo, hi] of a
-    lane are dropped (the bound stays valid, so the result is exact within the candidates).
+    Columns outside a lane's candidates [lo, hi] (band, ncols < size) are dropped; the bounds
+    stay valid, so the result is exact within the candidates.
     out_stats (H, 5) int64 per row: pixels that needed the second class, codeword evaluations,
     stage-1 blocks with at least one such pixel, stage-1 blocks, pending blocks.
     """
-    n, height, width = frames.shape
-    nclass = cls_weight.shape[0]
-    L = LANES
+    height = frames.shape[1]
     for yy in prange(height):
-        R = np.zeros((n, L), np.float64)
-        RI = np.zeros((n, L), np.float64)
-        PA = np.zeros((8, L), np.float64)
-        Y = np.zeros((n, L), np.int32)
-        SYN = np.zeros(L, np.int64)
-        COLH = np.zeros(L, np.int64)
-        HM = np.zeros(L, np.int64)
-        E = np.zeros(L, np.int64)
-        V = np.zeros((n, L), np.int32)
-        SV = np.zeros((n, L), np.int32)
-        lb = np.zeros((nclass + 1, L), np.int64)
-        run = np.zeros(L, np.int64)
-        acc = np.zeros(L, np.int32)
-        base = np.zeros(L, np.int32)
-        colref = np.zeros(L, np.int32)
-        lo = np.zeros(L, np.int32)
-        hi = np.zeros(L, np.int32)
-        k1 = np.empty(L, np.int64)
-        k2 = np.empty(L, np.int64)
-        k3 = np.empty(L, np.int64)
-        dmin = np.zeros(L, np.float64)
-        active = np.zeros(L, np.bool_)
-        # pending block (lanes that need the heavier classes)
-        PV = np.zeros((n, L), np.int32)
-        Plb = np.zeros((nclass + 1, L), np.int64)
-        Pbase = np.zeros(L, np.int32)
-        Pcolref = np.zeros(L, np.int32)
-        Plo = np.zeros(L, np.int32)
-        Phi = np.zeros(L, np.int32)
-        Pk1 = np.empty(L, np.int64)
-        Pk2 = np.empty(L, np.int64)
-        Pk3 = np.empty(L, np.int64)
-        Pdmin = np.zeros(L, np.float64)
-        Px = np.zeros(L, np.int64)
-        npend = 0
-        n_second = 0
-        evaluated = 0
-        blocks_second = 0
-        blocks = 0
-        pend_blocks = 0
-        for x0 in range(0, width, L):
-            blocks += 1
-            nact = _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2,
-                              q_scale, yy, x0, use_band, min_d, max_d, stripe, ncols, R, RI, PA,
-                              Y, dmin, active, lo, hi)
-            # hard decision -> syndrome and column of h, lane-parallel
-            for l in range(L):
-                SYN[l] = 0
-                COLH[l] = 0
-                HM[l] = 0
-            for i in range(n):
-                sc = syn_col[i]
-                cbit = col_bit[i]
-                ibit = np.int64(1) << i
-                for l in range(L):
-                    m = -np.int64(Y[i, l] > 0)
-                    SYN[l] ^= sc & m
-                    COLH[l] ^= cbit & m
-                    HM[l] |= ibit & m
-            for l in range(L):
-                if has_leader:
-                    E[l] = np.int64(leader[SYN[l]])
-                    colref[l] = np.int32(COLH[l] ^ leader_col[SYN[l]])
-                else:
-                    E[l] = HM[l] ^ np.int64(masks[COLH[l]])
-                    colref[l] = np.int32(COLH[l])
-                base[l] = 0
-            for i in range(n):
-                for l in range(L):
-                    yv = Y[i, l]
-                    wv = max(yv, -yv)
-                    bit = (E[l] >> i) & 1
-                    V[i, l] = wv - 2 * wv * np.int32(bit)
-                    base[l] += wv * np.int32(bit)
-            if nact == 0:
-                for l in range(L):
-                    if x0 + l < width:
-                        _write_none(out_col, out_dist, out_conf, yy, x0 + l)
+        _lanes_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
+                   masks, syn_col, col_bit, leader, leader_col, has_leader,
+                   cls_weight, cls_start, cls_pstart, dpos, dcol,
+                   ncols, use_band, min_d, max_d, stripe, out_col, out_dist, out_conf, out_stats)
+
+
+@njit(cache=True)
+def _band_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, masks_t,
+              ncols, min_d, max_d, stripe, out_col, out_dist, out_conf, out_stats):
+    """Row yy of `soft_band` (a plain function: keeps the parallel kernel small to compile)."""
+    n, height, width = frames.shape
+    L = LANES
+    R = np.zeros((n, L), np.float64)
+    RI = np.zeros((n, L), np.float64)
+    PA = np.zeros((8, L), np.float64)
+    Y = np.zeros((n, L), np.int32)
+    dmin = np.zeros(L, np.float64)
+    active = np.zeros(L, np.bool_)
+    lo = np.zeros(L, np.int32)
+    hi = np.zeros(L, np.int32)
+    acc = np.zeros(ncols + L, np.int32)
+    K1 = np.empty(L, np.int64)
+    K2 = np.empty(L, np.int64)
+    K3 = np.empty(L, np.int64)
+    pixels = 0
+    evaluated = 0
+    n4 = n - n % 4
+    for x0 in range(0, width, L):
+        _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
+                   yy, x0, True, min_d, max_d, stripe, ncols, R, RI, PA, Y, dmin, active,
+                   lo, hi)
+        for ln in range(L):
+            xx = x0 + ln
+            if xx >= width:
+                break
+            if not active[ln]:
+                _write_none(out_col, out_dist, out_conf, yy, xx)
                 continue
+            clo = lo[ln]
+            chi = hi[ln]
+            c0 = np.int32(0)
+            for i in range(n):
+                c0 += max(Y[i, ln], 0)
+            nb = chi - clo + 1
+            pixels += 1
+            evaluated += nb
+            for c in range(nb):
+                acc[c] = c0
+            for i in range(0, n4, 4):  # 4 rows per pass: fewer loads / stores of acc
+                y0 = Y[i, ln]
+                y1 = Y[i + 1, ln]
+                y2 = Y[i + 2, ln]
+                y3 = Y[i + 3, ln]
+                r0 = masks_t[i, clo:chi + 1]
+                r1 = masks_t[i + 1, clo:chi + 1]
+                r2 = masks_t[i + 2, clo:chi + 1]
+                r3 = masks_t[i + 3, clo:chi + 1]
+                for c in range(nb):
+                    acc[c] -= (r0[c] & y0) + (r1[c] & y1) + (r2[c] & y2) + (r3[c] & y3)
+            for i in range(n4, n):
+                yi = Y[i, ln]
+                row = masks_t[i, clo:chi + 1]
+                for c in range(nb):
+                    acc[c] -= row[c] & yi
             for l in range(L):
-                cr = colref[l]
-                ok = (cr >= lo[l]) & (cr <= hi[l])
-                k1[l] = ((np.int64(base[l]) << IDX_BITS) | np.int64(cr)) if ok else NO_KEY
-                k2[l] = NO_KEY
-                k3[l] = NO_KEY
-            evaluated += nact
-            if nclass > 0:
-                evaluated += nact * _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, L, 0,
-                                                 1, nclass, cls_weight, cls_start, cls_pstart,
-                                                 dpos, dcol, restricted)
-                _class_bounds(V, SV, run, lb, n, cls_weight, nclass)
-            else:
+                K1[l] = NO_KEY
+                K2[l] = NO_KEY
+                K3[l] = NO_KEY
+            for cb in range(0, nb, L):
                 for l in range(L):
-                    lb[0, l] = _NO_BOUND
-            any_second = False
+                    c = cb + l
+                    key = (np.int64(acc[c]) << IDX_BITS) | np.int64(clo + c)
+                    key = key if c < nb else NO_KEY
+                    t = K1[l]
+                    K1[l] = min(t, key)
+                    key = max(t, key)
+                    t = K2[l]
+                    K2[l] = min(t, key)
+                    key = max(t, key)
+                    K3[l] = min(K3[l], key)
+            k1 = NO_KEY
+            k2 = NO_KEY
+            k3 = NO_KEY
             for l in range(L):
-                xx = x0 + l
-                if xx >= width:
-                    continue
-                if not active[l]:
-                    _write_none(out_col, out_dist, out_conf, yy, xx)
-                    continue
-                cidx = 1 if nclass > 0 else 0
-                if (k3[l] >> IDX_BITS) < base[l] + lb[cidx, l]:
-                    _write(out_col, out_dist, out_conf, yy, xx, k1[l], k2[l], k3[l], dmin[l], q_scale)
-                    continue
-                # move lane l into the pending block
-                any_second = True
-                n_second += 1
-                p = npend
-                for i in range(n):
-                    PV[i, p] = V[i, l]
-                for c in range(nclass + 1):
-                    Plb[c, p] = lb[c, l]
-                Pbase[p] = base[l]
-                Pcolref[p] = colref[l]
-                Plo[p] = lo[l]
-                Phi[p] = hi[l]
-                Pk1[p] = k1[l]
-                Pk2[p] = k2[l]
-                Pk3[p] = k3[l]
-                Pdmin[p] = dmin[l]
-                Px[p] = xx
-                npend += 1
-                if npend == L:
-                    evaluated += npend * _run_classes(PV, Plb, Pbase, Pcolref, Plo, Phi, Pk1, Pk2, Pk3,
-                                                      acc, npend, 1, nclass, nclass, cls_weight,
-                                                      cls_start, cls_pstart, dpos, dcol, restricted)
-                    for q in range(npend):
-                        _write(out_col, out_dist, out_conf, yy, Px[q], Pk1[q], Pk2[q], Pk3[q],
-                               Pdmin[q], q_scale)
-                    npend = 0
-                    pend_blocks += 1
-            if any_second:
-                blocks_second += 1
-        if npend > 0:
-            for p in range(npend, L):
-                for i in range(n):
-                    PV[i, p] = 0
-                Pbase[p] = 0
-                Pcolref[p] = 0
-            evaluated += npend * _run_classes(PV, Plb, Pbase, Pcolref, Plo, Phi, Pk1, Pk2, Pk3, acc,
-                                              npend, 1, nclass, nclass, cls_weight, cls_start,
-                                              cls_pstart, dpos, dcol, restricted)
-            for q in range(npend):
-                _write(out_col, out_dist, out_conf, yy, Px[q], Pk1[q], Pk2[q], Pk3[q], Pdmin[q],
-                       q_scale)
-            pend_blocks += 1
-        out_stats[yy, 0] = n_second
-        out_stats[yy, 1] = evaluated
-        out_stats[yy, 2] = blocks_second
-        out_stats[yy, 3] = blocks
-        out_stats[yy, 4] = pend_blocks
+                if K1[l] < k3:
+                    k1, k2, k3 = _insert(K1[l], k1, k2, k3)
+                    if K2[l] < k3:
+                        k1, k2, k3 = _insert(K2[l], k1, k2, k3)
+                        if K3[l] < k3:
+                            k1, k2, k3 = _insert(K3[l], k1, k2, k3)
+            _write(out_col, out_dist, out_conf, yy, xx, k1, k2, k3, dmin[ln], q_scale)
+    out_stats[yy, 0] = pixels
+    out_stats[yy, 1] = evaluated
 
 
 @njit(cache=True, parallel=True)
@@ -868,90 +964,10 @@ def soft_band(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q
     the all-zero word; masks_t is 0 / -1), a loop over contiguous candidate columns, then a
     lane-wise top-3 network over LANES columns at a time.  out_stats (H, 2): decoded pixels,
     candidate evaluations."""
-    n, height, width = frames.shape
-    L = LANES
+    height = frames.shape[1]
     for yy in prange(height):
-        R = np.zeros((n, L), np.float64)
-        RI = np.zeros((n, L), np.float64)
-        PA = np.zeros((8, L), np.float64)
-        Y = np.zeros((n, L), np.int32)
-        dmin = np.zeros(L, np.float64)
-        active = np.zeros(L, np.bool_)
-        lo = np.zeros(L, np.int32)
-        hi = np.zeros(L, np.int32)
-        acc = np.zeros(ncols + L, np.int32)
-        K1 = np.empty(L, np.int64)
-        K2 = np.empty(L, np.int64)
-        K3 = np.empty(L, np.int64)
-        pixels = 0
-        evaluated = 0
-        n4 = n - n % 4
-        for x0 in range(0, width, L):
-            _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
-                       yy, x0, True, min_d, max_d, stripe, ncols, R, RI, PA, Y, dmin, active,
-                       lo, hi)
-            for ln in range(L):
-                xx = x0 + ln
-                if xx >= width:
-                    break
-                if not active[ln]:
-                    _write_none(out_col, out_dist, out_conf, yy, xx)
-                    continue
-                clo = lo[ln]
-                chi = hi[ln]
-                c0 = np.int32(0)
-                for i in range(n):
-                    c0 += max(Y[i, ln], 0)
-                nb = chi - clo + 1
-                pixels += 1
-                evaluated += nb
-                for c in range(nb):
-                    acc[c] = c0
-                for i in range(0, n4, 4):  # 4 rows per pass: fewer loads / stores of acc
-                    y0 = Y[i, ln]
-                    y1 = Y[i + 1, ln]
-                    y2 = Y[i + 2, ln]
-                    y3 = Y[i + 3, ln]
-                    r0 = masks_t[i, clo:chi + 1]
-                    r1 = masks_t[i + 1, clo:chi + 1]
-                    r2 = masks_t[i + 2, clo:chi + 1]
-                    r3 = masks_t[i + 3, clo:chi + 1]
-                    for c in range(nb):
-                        acc[c] -= (r0[c] & y0) + (r1[c] & y1) + (r2[c] & y2) + (r3[c] & y3)
-                for i in range(n4, n):
-                    yi = Y[i, ln]
-                    row = masks_t[i, clo:chi + 1]
-                    for c in range(nb):
-                        acc[c] -= row[c] & yi
-                for l in range(L):
-                    K1[l] = NO_KEY
-                    K2[l] = NO_KEY
-                    K3[l] = NO_KEY
-                for cb in range(0, nb, L):
-                    for l in range(L):
-                        c = cb + l
-                        key = (np.int64(acc[c]) << IDX_BITS) | np.int64(clo + c)
-                        key = key if c < nb else NO_KEY
-                        t = K1[l]
-                        K1[l] = min(t, key)
-                        key = max(t, key)
-                        t = K2[l]
-                        K2[l] = min(t, key)
-                        key = max(t, key)
-                        K3[l] = min(K3[l], key)
-                k1 = NO_KEY
-                k2 = NO_KEY
-                k3 = NO_KEY
-                for l in range(L):
-                    if K1[l] < k3:
-                        k1, k2, k3 = _insert(K1[l], k1, k2, k3)
-                        if K2[l] < k3:
-                            k1, k2, k3 = _insert(K2[l], k1, k2, k3)
-                            if K3[l] < k3:
-                                k1, k2, k3 = _insert(K3[l], k1, k2, k3)
-                _write(out_col, out_dist, out_conf, yy, xx, k1, k2, k3, dmin[ln], q_scale)
-        out_stats[yy, 0] = pixels
-        out_stats[yy, 1] = evaluated
+        _band_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
+                  masks_t, ncols, min_d, max_d, stripe, out_col, out_dist, out_conf, out_stats)
 
 
 @njit(cache=True, parallel=True)

@@ -20,7 +20,16 @@ topic                       schema (encoding)           content
 ``/<device>/stack``         edge.StackInfo (json)       per-stack metadata from the runtime
 ``/<device>/calibration``   foxglove.CameraCalibration  camera intrinsics from the profile
                             (pb)                        geometry (plumb_bob, zero distortion)
+``/<device>/events``        edge.EventSlice (pb)        event sensors only (registered on the
+                                                        first slice): the events of one slot,
+                                                        column-wise x, y, t, p plus sequence,
+                                                        stack, projector_frame, time window;
+                                                        MCAP ``sequence`` = slice sequence
+                                                        (`edge.runtime.event_record`)
 ==========================  ==========================  =======================================
+
+Further topics are added through `edge.io.mcap_writer.Recorder.register_channel` (same
+``/<device>/<leaf>`` naming); `topics` lists the standard ones that every recording has.
 
 Metadata records: ``edge.profile`` {"name", "json" (profile_to_dict as JSON), "sha256"} and
 ``edge.sensor`` (free str -> str map from the backend). Attachment ``profile.json`` holds the same

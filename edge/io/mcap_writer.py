@@ -9,12 +9,18 @@ Usage::
         rec.write_raw(image, sequence=7, timestamp_ns=t, stack=0, projector_frame=3, role="pattern")
         rec.write_stack({"stack": 0, "frames": 24, "edc_rounds": 1}, timestamp_ns=t)
         rec.write_depth(depth_mm_u16, confidence_u8, timestamp_ns=t, stack=0, sequence=0)
+        cid = rec.register_channel("events", "edge.EventSlice", "protobuf", descriptor_set_bytes)
+        rec.write_message(cid, message_bytes, log_time_ns=t, sequence=7)   # extra topics
     # finish() ran: summary, indexes and CRCs are written even if the block raised.
 
 Chunked (``profile.recording.chunk_size`` bytes), compressed (``profile.recording.compression``),
 chunk / data-section / summary CRCs on. Every write takes a lock, so a capture thread and a decode
 thread may share one Recorder. The file object is flushed after every write, so a killed process
 leaves every completed chunk on disk for `edge.io.mcap.recover`.
+
+Extra topics (``/<device>/<leaf>`` beyond the standard table of `edge.io.mcap_format`, e.g. the
+event slices of `edge.runtime.event_record`) go through the public `Recorder.register_channel` /
+`Recorder.write_message` pair; subclasses need no private members.
 """
 
 from __future__ import annotations
@@ -46,9 +52,11 @@ from .mcap_format import (
     topics,
 )
 
-__all__ = ["Recorder", "COMPRESSION"]
+__all__ = ["Recorder", "COMPRESSION", "MESSAGE_ENCODINGS"]
 
 COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+#: message encoding -> schema encoding of the channels a Recorder writes
+MESSAGE_ENCODINGS = {"protobuf": "protobuf", "json": "jsonschema"}
 
 
 class Recorder:
@@ -78,8 +86,10 @@ class Recorder:
                                   compression=COMPRESSION[compression], enable_crcs=True,
                                   enable_data_crcs=True)
             self._writer.start(profile=MCAP_PROFILE, library=f"edge {__version__}")
-            self._channels: dict[str, int] = {}
-            self._sequence: dict[str, int] = {}
+            self._channels: dict[str, int] = {}          # leaf -> channel id
+            self._channel_schema: dict[int, tuple[str, str, bytes]] = {}  # extra channels: id -> schema
+            self._schemas: dict[tuple[str, str, bytes], int] = {}
+            self._sequence: dict[int, int] = {}          # channel id -> next automatic sequence
             self._register()
             text, digest = profile_json(profile_to_dict(profile))
             now = time.time_ns()
@@ -121,10 +131,13 @@ class Recorder:
                 topic=self.topics[leaf], message_encoding=encoding, schema_id=schema_id)
 
     def _add(self, leaf: str, data: bytes, log_time: int, sequence: int | None = None) -> None:
+        self._add_to(self._channels[leaf], data, log_time, sequence)
+
+    def _add_to(self, channel_id: int, data: bytes, log_time: int, sequence: int | None = None) -> None:
         if sequence is None:
-            sequence = self._sequence.get(leaf, 0)
-            self._sequence[leaf] = sequence + 1
-        self._writer.add_message(channel_id=self._channels[leaf], log_time=int(log_time), data=data,
+            sequence = self._sequence.get(channel_id, 0)
+            self._sequence[channel_id] = sequence + 1
+        self._writer.add_message(channel_id=channel_id, log_time=int(log_time), data=data,
                                  publish_time=int(log_time), sequence=int(sequence) & 0xFFFFFFFF)
         self.messages_written += 1
         self.bytes_in += len(data)
@@ -132,6 +145,54 @@ class Recorder:
     def _check_open(self) -> None:
         if self._finished:
             raise ValueError(f"recorder for {self.path} is finished; expected writes before finish()")
+
+    # -- extra channels ----------------------------------------------------------------------
+
+    def register_channel(self, leaf: str, schema_name: str, encoding: str, schema_data: bytes) -> int:
+        """Add topic ``/<device>/<leaf>`` (message ``encoding`` ``protobuf`` or ``json``; the schema
+        record is ``schema_name`` with encoding ``protobuf`` (``schema_data`` = a serialized
+        FileDescriptorSet) or ``jsonschema`` (``schema_data`` = the JSON schema)) and return its
+        channel id for `write_message`.  ``self.topics[leaf]`` names the topic afterwards.
+
+        Idempotent: the same leaf with the same schema returns the same id (so it may be called
+        lazily, on the first message); a standard leaf or another schema for a registered leaf is a
+        ValueError.
+        """
+        if not leaf or "/" in leaf:
+            raise ValueError(f"expected a topic leaf name without '/', got {leaf!r}")
+        if encoding not in MESSAGE_ENCODINGS:
+            raise ValueError(f"expected a message encoding in {sorted(MESSAGE_ENCODINGS)}, got {encoding!r}")
+        key = (str(schema_name), MESSAGE_ENCODINGS[encoding], bytes(schema_data))
+        with self._lock:
+            self._check_open()
+            if leaf in self._channels:
+                cid = self._channels[leaf]
+                if self._channel_schema.get(cid) != key:
+                    raise ValueError(f"topic /{self.profile.zenoh.device}/{leaf} is already registered with "
+                                     f"another schema; expected a new leaf or the schema {schema_name!r} it has")
+                return cid
+            schema_id = self._schemas.get(key)
+            if schema_id is None:
+                schema_id = self._schemas[key] = self._writer.register_schema(
+                    name=key[0], encoding=key[1], data=key[2])
+            topic = f"/{self.profile.zenoh.device}/{leaf}"
+            cid = self._writer.register_channel(topic=topic, message_encoding=encoding, schema_id=schema_id)
+            self.topics[leaf] = topic
+            self._channels[leaf] = cid
+            self._channel_schema[cid] = key
+            self._file.flush()
+            return cid
+
+    def write_message(self, channel: int, data: bytes, *, log_time_ns: int, sequence: int | None = None) -> None:
+        """One message on a channel from `register_channel`: ``data`` already serialized; MCAP
+        log_time = publish_time = ``log_time_ns``; ``sequence`` (None = 0, 1, 2... per channel)."""
+        with self._lock:
+            self._check_open()
+            if channel not in self._channel_schema:
+                raise ValueError(f"expected a channel id from register_channel "
+                                 f"({sorted(self._channel_schema)}), got {channel!r}")
+            self._add_to(channel, bytes(data), log_time_ns, sequence)
+            self._file.flush()
 
     # -- writes ------------------------------------------------------------------------------
 

@@ -22,7 +22,8 @@ The events are stored column-wise (struct of arrays, in arrival order, unmodifie
 chunk compressor (zstd / lz4) packs equal-typed columns far better than interleaved 13-byte
 records; decoding is four ``np.frombuffer`` calls, and `parse_event_slice` gives back exactly the
 `EVENT_DTYPE` array that was recorded, so replay reproduces depth bit for bit.  MCAP ``log_time``
-is ``timestamp_ns`` and ``sequence`` the slice's sequence number.
+is ``timestamp_ns`` and ``sequence`` the slice's sequence number.  The channel is registered with
+`register_events_channel` (the Recorder's public ``register_channel`` / ``write_message`` API).
 """
 
 from __future__ import annotations
@@ -65,6 +66,13 @@ def _schema() -> tuple[Any, bytes]:
 def schema_data() -> bytes:
     """The serialized FileDescriptorSet of ``edge.EventSlice`` (the MCAP schema record's data)."""
     return _schema()[1]
+
+
+def register_events_channel(recorder) -> int:
+    """Register ``/<device>/events`` (``edge.EventSlice``, protobuf) on an `edge.io.mcap_writer.Recorder`
+    through its public `register_channel`; returns the channel id for ``recorder.write_message``
+    (idempotent)."""
+    return recorder.register_channel(TOPIC_LEAF, SCHEMA_NAME, "protobuf", schema_data())
 
 
 def event_slice_message(s: EventSlice, width: int, height: int) -> bytes:

@@ -23,23 +23,19 @@ from .pipeline import DepthResult
 
 class EdgeRecorder(Recorder):
     """`Recorder` plus `write_events`: event slices on ``/<device>/events`` (schema ``edge.EventSlice``,
-    protobuf; layout in `edge.runtime.event_record`).  The channel is registered on the first slice,
-    so frame recordings are unchanged."""
+    protobuf; layout in `edge.runtime.event_record`).  The channel is registered on the first slice
+    (through the public `Recorder.register_channel`), so frame recordings are unchanged."""
+
+    _events_channel: int | None = None
 
     def write_events(self, s: EventSlice) -> None:
-        from .event_record import SCHEMA_NAME, TOPIC_LEAF, event_slice_message, schema_data
+        from .event_record import event_slice_message, register_events_channel
 
         cam = self.profile.camera
         data = event_slice_message(s, cam.width, cam.height)
-        with self._lock:
-            self._check_open()
-            if TOPIC_LEAF not in self._channels:
-                schema_id = self._writer.register_schema(name=SCHEMA_NAME, encoding="protobuf", data=schema_data())
-                self.topics[TOPIC_LEAF] = f"/{self.profile.zenoh.device}/{TOPIC_LEAF}"
-                self._channels[TOPIC_LEAF] = self._writer.register_channel(
-                    topic=self.topics[TOPIC_LEAF], message_encoding="protobuf", schema_id=schema_id)
-            self._add(TOPIC_LEAF, data, s.timestamp_ns, s.sequence)
-            self._file.flush()
+        if self._events_channel is None:
+            self._events_channel = register_events_channel(self)
+        self.write_message(self._events_channel, data, log_time_ns=s.timestamp_ns, sequence=s.sequence)
 
     def write_record(self, record, **extra) -> None:
         """A `Frame` (``write_frame`` with its role) or an `EventSlice` (``write_events``)."""

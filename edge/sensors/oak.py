@@ -146,7 +146,14 @@ def stereo_frame_from_imgframes(left: Any, right: Any, *, projector_frame: int, 
 
 @dataclass
 class PairCounters:
-    """Counters of `StereoPairer` (monotonically increasing)."""
+    """Counters of `StereoPairer` (monotonically increasing), in frames.
+
+    pairs: pairs delivered; unpaired_left / unpaired_right: left / right frames dropped because
+    their partner never came within the window; late: frames that arrived after their sequence
+    number was closed (paired, dropped or passed); duplicates: a second frame with a pending
+    sequence number on the same side; desynced: pairs dropped for a device-timestamp skew over
+    ``max_skew_ns``.
+    """
 
     pairs: int = 0
     unpaired_left: int = 0
@@ -215,8 +222,8 @@ class StereoPairer:
             if seq in left and seq in right:
                 lmsg, rmsg = left.pop(seq), right.pop(seq)
                 self._close(seq)
-                if self.max_skew_ns is not None and abs(
-                        timedelta_ns(lmsg.getTimestampDevice()) - timedelta_ns(rmsg.getTimestampDevice())) > self.max_skew_ns:
+                skew = abs(timedelta_ns(lmsg.getTimestampDevice()) - timedelta_ns(rmsg.getTimestampDevice()))
+                if self.max_skew_ns is not None and skew > self.max_skew_ns:
                     self.counters.desynced += 1
                     continue
                 self.counters.pairs += 1
@@ -351,7 +358,8 @@ def geometry_from_calibration(calibration: Any, width: int, height: int) -> dict
             "cx_projector": float(k[0, 2]), "cy": float(k[1, 2])}
 
 
-def geometry_mismatch(profile_geometry: Any, device: dict[str, float], rel_tol: float = GEOMETRY_TOLERANCE) -> list[str]:
+def geometry_mismatch(profile_geometry: Any, device: dict[str, float],
+                      rel_tol: float = GEOMETRY_TOLERANCE) -> list[str]:
     """Keys where the profile's geometry differs from ``device`` by more than ``rel_tol`` (relative; pixels
     for cx/cy relative to the focal length)."""
     bad = []
@@ -405,9 +413,11 @@ class OakSensor:
         self._pipeline = pipeline
         if output_factory is None:
             if self.stereo:
-                output_factory = lambda p: stereo_outputs(p, cam.width, cam.height, cam.rate_hz, rectify=rectify)  # noqa: E731
+                def output_factory(p):
+                    return stereo_outputs(p, cam.width, cam.height, cam.rate_hz, rectify=rectify)
             else:
-                output_factory = lambda p: camera_output(p, cam.width, cam.height, cam.rate_hz)  # noqa: E731
+                def output_factory(p):
+                    return camera_output(p, cam.width, cam.height, cam.rate_hz)
         self._output_factory = output_factory
         self._emitter = emitter
         self._queues: dict[str, Any] = {}
