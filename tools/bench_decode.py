@@ -152,7 +152,7 @@ def main(argv=None) -> int:
     runs = [
         ("decode(): soft", dict(method="soft")),
         ("decode(): soft, spatial_check=False", dict(method="soft", spatial_check=False)),
-        (f"decode(): soft, band, spatial_check=False", dict(method="soft", spatial_check=False,
+        ("decode(): soft, band, spatial_check=False", dict(method="soft", spatial_check=False,
                                                             min_disparity=min_d, max_disparity=max_d)),
         ("decode(): hard, spatial_check=False", dict(method="hard", spatial_check=False)),
         ("decode(): hard", dict(method="hard")),

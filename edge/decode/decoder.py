@@ -57,8 +57,10 @@ DEFAULTS = {
 #: Quantisation steps per unit of per-sample cost (ML: chi-square units; normalised: x**2 units).
 Q_SCALE = {kernels.METRIC_ML: 256.0, kernels.METRIC_NORMALIZED: 16384.0, kernels.METRIC_HARD: 1.0}
 #: With a disparity band of at most this many columns the soft search scans the band directly
-#: (`kernels.soft_band`); wider bands use the lane search with the band as a restriction.
-BAND_BRUTE_MAX = 256
+#: (`kernels.soft_band`); wider bands use the lane search with the band as a restriction.  The
+#: crossover measured with tools/bench_decode.py's input (ecc-22-10, 600 x 700): scan 135 / 203 /
+#: 271 ms CPU for 64 / 128 / 192 columns, lane search 272 / 224 / 217 ms.
+BAND_BRUTE_MAX = 160
 
 
 @dataclass(frozen=True)

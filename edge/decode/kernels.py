@@ -34,7 +34,7 @@ search is `soft_binary` (the "scalar" path, any binary code).
 Fast paths (same keys, same ties, bit-identical results; tests compare them with `soft_binary`):
 
 * `soft_lanes` (column-linear codes, see `tables`): the same c_ref / V decomposition, but
-  LANES (= 32) consecutive pixels of a row are decoded together with V stored (n, LANES), so
+  LANES (= 64) consecutive pixels of a row are decoded together with V stored (n, LANES), so
   the cost of c_ref ^ D for every lane is |D| contiguous vector adds with positions shared by
   all lanes, the column is col(c_ref) ^ col(D), and the top-3 update is a branch-free min/max
   network per lane.  Whole weight classes are evaluated (D = 0 and the lightest class for the
@@ -44,7 +44,7 @@ Fast paths (same keys, same ties, bit-identical results; tests compare them with
   issue-4 benchmark (ecc-22-10: classes 8, 12, 16) about 5e-6 of the pixels need class 12.
 * `soft_band` (any binary code, a band of at most a few hundred columns): per pixel
   cost(c) = C0 - sum_i (masks_t[i, c] & y_i) over the contiguous candidate columns, then a
-  16-wide min/max network.  Brute force over the band, which beats pruning when the band
+  BAND_NET-wide (16) min/max network.  Brute force over the band, which beats pruning when the band
   holds a small share of the codebook.
 * `hard_lean`: hard decisions, syndrome and information bits as XORs of per-position
   contributions over contiguous x, then one coset-leader lookup per pixel.
@@ -491,7 +491,9 @@ def soft_nary(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q
 
 #: Pixels decoded together by `soft_lanes` (consecutive x of one row); a compile-time constant
 #: so that every loop over lanes has a fixed trip count and vectorises.
-LANES = 32
+LANES = 64
+#: Width of the top-3 min/max network of `soft_band` (columns per step).
+BAND_NET = 16
 #: Larger than any cost bound (an empty weight class).
 _NO_BOUND = np.int64(1) << np.int64(62)
 
@@ -881,10 +883,10 @@ def _band_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss
     active = np.zeros(L, np.bool_)
     lo = np.zeros(L, np.int32)
     hi = np.zeros(L, np.int32)
-    acc = np.zeros(ncols + L, np.int32)
-    K1 = np.empty(L, np.int64)
-    K2 = np.empty(L, np.int64)
-    K3 = np.empty(L, np.int64)
+    acc = np.zeros(ncols + BAND_NET, np.int32)
+    K1 = np.empty(BAND_NET, np.int64)
+    K2 = np.empty(BAND_NET, np.int64)
+    K3 = np.empty(BAND_NET, np.int64)
     pixels = 0
     evaluated = 0
     n4 = n - n % 4
@@ -925,12 +927,12 @@ def _band_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss
                 row = masks_t[i, clo:chi + 1]
                 for c in range(nb):
                     acc[c] -= row[c] & yi
-            for l in range(L):
+            for l in range(BAND_NET):
                 K1[l] = NO_KEY
                 K2[l] = NO_KEY
                 K3[l] = NO_KEY
-            for cb in range(0, nb, L):
-                for l in range(L):
+            for cb in range(0, nb, BAND_NET):
+                for l in range(BAND_NET):
                     c = cb + l
                     key = (np.int64(acc[c]) << IDX_BITS) | np.int64(clo + c)
                     key = key if c < nb else NO_KEY
@@ -944,7 +946,7 @@ def _band_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss
             k1 = NO_KEY
             k2 = NO_KEY
             k3 = NO_KEY
-            for l in range(L):
+            for l in range(BAND_NET):
                 if K1[l] < k3:
                     k1, k2, k3 = _insert(K1[l], k1, k2, k3)
                     if K2[l] < k3:
@@ -962,7 +964,7 @@ def soft_band(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q
     """Exact top-3 soft decoding of any binary code within a disparity band, by scanning the
     band: cost(c) = C0 - sum_i (masks_t[i, c] & y_i) with C0 = sum_i max(y_i, 0) (the cost of
     the all-zero word; masks_t is 0 / -1), a loop over contiguous candidate columns, then a
-    lane-wise top-3 network over LANES columns at a time.  out_stats (H, 2): decoded pixels,
+    lane-wise top-3 network over BAND_NET columns at a time.  out_stats (H, 2): decoded pixels,
     candidate evaluations."""
     height = frames.shape[1]
     for yy in prange(height):
