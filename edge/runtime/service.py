@@ -242,6 +242,7 @@ class Service:
             "config_updates": self.counters.config_updates,
             "config_rejected": self.counters.config_rejected,
             "recorder": self.recorder.stats() if self.recorder is not None and hasattr(self.recorder, "stats") else None,
+            "sensor_stats": self.sensor.stats() if callable(getattr(self.sensor, "stats", None)) else None,
             "errors": self.counters.last_error,
             **{k: v for k, v in self.pipeline_stats.items() if k not in ("stacks_decoded",)},
         }
