@@ -119,6 +119,35 @@ def test_fast_paths_equal_scalar_path(name, inverse):
             assert got[3]["second_class_pixels"] > 0  # the pending (second-class) stage ran
 
 
+@pytest.mark.parametrize("name", ["ecc-22-10", "gray-10"])
+def test_band_fold_equals_band_scan(name):
+    """The folded Walsh-Hadamard band kernel returns exactly what the band scan returns, for
+    bands of several widths and offsets (clipped at both image edges, blocks only partly in the
+    band, one-column bands), stripes, restricted columns, inverse frames and tail lane blocks."""
+    code = get_code(name)
+    rng = np.random.default_rng(5)
+    h, w = 4, 2 * LANES + 37
+    cols = rng.integers(0, code.size, (h, w))
+    for inverse in (False, True):
+        cap = make_capture(code, cols, rng=rng, albedo=rng.uniform(0.0, 0.5, (h, w)), sigma_s=0.08,
+                           inverse=inverse)
+        white, black = cap.white.copy(), cap.black.copy()
+        dark = rng.random((h, w)) < 0.05
+        white[dark] = black[dark]
+        st = validate(cap.frames, white, black, code, inverse=cap.inverse)
+        cases = [((True, 0, 127), code.size, 1), ((True, -40, 87), code.size, 1), ((True, 5, 5), code.size, 1),
+                 ((True, -300, -150), code.size, 1), ((True, 100, 250), 700, 1), ((True, -64, 80), 500, 2),
+                 ((True, 13, 70), code.size, 3)]
+        for band, ncols, stripe in cases:
+            kw = dict(metric=METRIC_ML, sigma_r=SR, sigma_s=SS, columns=ncols, band=band, stripe=stripe)
+            ref = decoder.search(st, code, path="band-scan", **kw)
+            got = decoder.search(st, code, path="band", **kw)
+            assert got[3]["path"] == "band" and ref[3]["path"] == "band-scan"
+            for a, b in zip(ref[:3], got[:3]):
+                np.testing.assert_array_equal(a, b, err_msg=f"{inverse} {band} {ncols} {stripe}")
+            assert got[3]["evaluated"] == ref[3]["evaluated"]
+
+
 def test_hard_is_nearest_codeword():
     code = get_code("ecc-22-10")
     rng = np.random.default_rng(12)

@@ -8,7 +8,7 @@ import pytest
 from edge.codes import get_code
 from edge.decode import decode
 from edge.decode.levels import decode_refined, initial_levels, refine_levels
-from edge.decode.spatial import confidence_median, order_prior
+from edge.decode.spatial import confidence_median, order_prior, spatial_support
 
 
 def _ramp_row(width: int, offset: int = 100) -> tuple[np.ndarray, np.ndarray]:
@@ -157,3 +157,63 @@ def test_refined_levels_recover_the_true_levels_and_the_columns():
     assert wi[0, 0] > bi[0, 0] and abs(wi[0, 0] - on) < 0.05 and abs(bi[0, 0] - off) < 0.05
     out = decode_refined(frames, white, black, code, **kw)
     assert out.column[0, 0] >= 0
+
+
+def _support_reference(col, conf, eligible, t_vote, window, min_votes, tol):
+    """Plain-Python spatial support: sort the voters' columns, take the median, compare."""
+    h, w = col.shape
+    r = window // 2
+    out = np.zeros((h, w), bool)
+    for y in range(h):
+        for x in range(w):
+            if not eligible[y, x] or col[y, x] < 0:
+                continue
+            votes = sorted(
+                int(col[y2, x2])
+                for y2 in range(max(0, y - r), min(h, y + r + 1))
+                for x2 in range(max(0, x - r), min(w, x + r + 1))
+                if (y2, x2) != (y, x) and eligible[y2, x2] and conf[y2, x2] >= t_vote and col[y2, x2] >= 0
+            )
+            m = len(votes)
+            if m < min_votes:
+                continue
+            med = votes[m // 2] if m % 2 else (votes[m // 2 - 1] + votes[m // 2]) // 2
+            out[y, x] = abs(int(col[y, x]) - med) <= tol
+    return out
+
+
+def test_spatial_support_equals_sorted_median_reference():
+    """The counting kernel gives exactly the sorted-median answer (odd and even voter counts,
+    ties, pairs straddling the tolerance, image borders, -1 columns, ineligible pixels)."""
+    rng = np.random.default_rng(7)
+    for trial in range(6):
+        h, w = rng.integers(5, 24), rng.integers(5, 40)
+        col = rng.integers(-1, 9, (h, w)).astype(np.int32) + (100 if trial % 2 else 0)
+        col[rng.random((h, w)) < 0.1] = -1
+        conf = rng.random((h, w)).astype(np.float32)
+        eligible = rng.random((h, w)) > 0.2
+        for window, min_votes, tol in [(5, 3, 1), (5, 1, 0), (3, 2, 2), (7, 4, 1)]:
+            got = spatial_support(col, conf, eligible, t_vote=0.3, window=window, min_votes=min_votes, tol=tol)
+            ref = _support_reference(col, conf, eligible, 0.3, window, min_votes, tol)
+            np.testing.assert_array_equal(got, ref, err_msg=f"trial {trial} {window} {min_votes} {tol}")
+
+
+def test_decode_levels_option():
+    """decode(levels="refit") is decode_refined; bad values and inverse frames are refused."""
+    code = get_code("ecc-22-10")
+    rng = np.random.default_rng(4)
+    h, w = 8, 40
+    cols = rng.integers(0, code.size, (h, w))
+    x = np.moveaxis(code.codebook[cols].astype(np.float32), -1, 0)
+    frames = (0.2 + 0.1 * x + 0.02 * rng.standard_normal(x.shape)).clip(0).astype(np.float32)
+    white = (0.3 + 0.02 * rng.standard_normal((h, w))).astype(np.float32)
+    black = (0.2 + 0.02 * rng.standard_normal((h, w))).astype(np.float32)
+    kw = dict(sigma_r=0.02, sigma_s=0.0, min_contrast=0.0, min_confidence=0.0)
+    a = decode(frames, white, black, code, levels="refit", **kw)
+    b = decode_refined(frames, white, black, code, **kw)
+    np.testing.assert_array_equal(a.column, b.column)
+    np.testing.assert_array_equal(a.confidence, b.confidence)
+    with pytest.raises(ValueError, match="levels"):
+        decode(frames, white, black, code, levels="fit")
+    with pytest.raises(ValueError, match="inverse"):
+        decode(frames, white, black, code, levels="refit", inverse=frames)

@@ -9,11 +9,14 @@ chunked matmul of the per-sample cost differences against all 1024 codewords + a
 only).  Everything runs in one process on the same input.
 
 Rows: "search" rows time the exact top-3 search alone (`edge.decode.decoder.search`, or the
-syndrome kernel for hard decoding): what issue 4 section 4 targets.  "decode()" rows time the
-public call, which adds the valid mask and, by default, the spatial support check
-(`edge.decode.spatial.spatial_support`).  Each row: median wall time over --repeats calls, the
+syndrome kernel for hard decoding): what issue 4 section 4 targets; the band is searched with
+the folded Walsh-Hadamard kernel (path "band") and, for comparison, the plain band scan
+("band-scan"; both must agree exactly).  "decode()" rows time the public call, which adds the
+valid mask and, by default, the spatial support check (`edge.decode.spatial.spatial_support`,
+also timed alone); "(default)" marks the default options.  Each row: median wall time over --repeats calls, the
 median process CPU time of the same calls (CPU / wall near 2 means both cores were ours; near 1
-means the machine was busy), frames/s and the ratio to the baseline.  The first call of each
+means the machine was busy), frames/s, the ratio to the baseline and the 1-minute load average
+after the row.  The first call of each
 kernel (numba compile, or loading the on-disk cache) is timed separately ("first"); with
 --cold-compile a subprocess with an empty NUMBA_CACHE_DIR reports the true compile times.
 Peak memory: tracemalloc peak of one decode() call (numpy allocations) and ru_maxrss of the
@@ -93,7 +96,7 @@ def cold_compile() -> int:
     """Child process: first-call times with an empty numba cache (= compile times)."""
     code, _, cap = make_input(8, 40, 16, 0)
     fr, wh, bl = cap.frames, cap.white, cap.black
-    for name, kw in [("soft (lane search)", {}), ("soft band (band scan)", {"min_disparity": 0, "max_disparity": 15}),
+    for name, kw in [("soft (lane search)", {}), ("soft band (folded WHT)", {"min_disparity": 0, "max_disparity": 15}),
                      ("hard (syndrome)", {"method": "hard"})]:
         t0 = time.perf_counter()
         decode(fr, wh, bl, code, spatial_check=False, **kw)
@@ -125,10 +128,10 @@ def main(argv=None) -> int:
           f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}, {os.cpu_count()} CPUs", flush=True)
 
     def report(name, result_cols, first, med, cpu, base_med=None):
-        acc = float((result_cols == cols).mean())
+        acc = f"{float((result_cols == cols).mean()):.4f}" if result_cols is not None else "     -"
         ratio = f"{base_med / med:6.1f}x" if base_med else "   1.0x"
-        print(f"{name:<44} first {first:6.2f} s  median {med * 1e3:7.1f} ms  cpu {cpu * 1e3:7.1f} ms  "
-              f"{1.0 / med:7.1f} frames/s {ratio}  correct {acc:.4f}", flush=True)
+        print(f"{name:<48} first {first:6.2f} s  median {med * 1e3:7.1f} ms  cpu {cpu * 1e3:7.1f} ms  "
+              f"{1.0 / med:7.1f} frames/s {ratio}  correct {acc}  load {os.getloadavg()[0]:.2f}", flush=True)
 
     base, bfirst, bmed, bcpu = timed(lambda: baseline_numpy(fr, wh, bl, code), max(1, min(3, args.repeats)))
     report("baseline numpy matmul+argmin (top-1)", base, bfirst, bmed, bcpu)
@@ -143,20 +146,35 @@ def main(argv=None) -> int:
           f"the 2nd weight class {s['second_class_pixels'] / (h * w):.4%}; lane blocks with such a pixel "
           f"{s['second_class_blocks'] / max(s['blocks'], 1):.4%} of {s['blocks']}", flush=True)
     print(f"    agreement with baseline argmin: {float((r[0][..., 0] == base).mean()):.6f}", flush=True)
-    r, first, med, cpu = timed(lambda: decoder.search(st, code, band=(True, min_d, max_d), **kw), args.repeats)
+    band = (True, min_d, max_d)
+    r, first, med, cpu = timed(lambda: decoder.search(st, code, band=band, **kw), args.repeats)
     report(f"search: soft top-3, {args.band}-column band", r[0][..., 0], first, med, cpu, bmed)
     print(f"    path {r[3]['path']}: candidates / pixel {r[3]['evaluated'] / (h * w):.1f}", flush=True)
+    r2, first, med, cpu = timed(lambda: decoder.search(st, code, band=band, path="band-scan", **kw), args.repeats)
+    report(f"search: soft top-3, {args.band}-col band, plain scan", r2[0][..., 0], first, med, cpu, bmed)
+    same = all(np.array_equal(a, b) for a, b in zip(r[:3], r2[:3]))
+    print(f"    band (folded WHT) == band-scan on every output: {same}", flush=True)
     r, first, med, cpu = timed(lambda: decoder._hard(st, code, code.size, (False, 0, 0), 1), args.repeats)
     report("search: hard (syndrome table)", r[0][..., 0], first, med, cpu, bmed)
 
+    from edge.decode.spatial import spatial_support
+
+    d0 = decode(fr, wh, bl, code, spatial_check=False)
+    elig = d0.candidates[..., 0] >= 0
+    _, first, med, cpu = timed(lambda: spatial_support(d0.column, d0.confidence, elig,
+                                                       t_vote=decoder.DEFAULTS["t_high"]), args.repeats)
+    report("spatial_support (default valid mask's check)", None, first, med, cpu, bmed)
+
+    bopts = dict(min_disparity=min_d, max_disparity=max_d)
     runs = [
-        ("decode(): soft", dict(method="soft")),
+        ("decode(): soft (default)", dict(method="soft")),
         ("decode(): soft, spatial_check=False", dict(method="soft", spatial_check=False)),
-        ("decode(): soft, band, spatial_check=False", dict(method="soft", spatial_check=False,
-                                                            min_disparity=min_d, max_disparity=max_d)),
+        ("decode(): soft, band (default)", dict(method="soft", **bopts)),
+        ("decode(): soft, band, spatial_check=False", dict(method="soft", spatial_check=False, **bopts)),
+        ("decode(): hard (default)", dict(method="hard")),
         ("decode(): hard, spatial_check=False", dict(method="hard", spatial_check=False)),
-        ("decode(): hard", dict(method="hard")),
         ("decode(): list+median", dict(method="list+median")),
+        ("decode(): soft, levels='refit'", dict(method="soft", levels="refit")),
     ]
     for name, opts in runs:
         d, first, med, cpu = timed(lambda: decode(fr, wh, bl, code, **opts), args.repeats)

@@ -13,7 +13,8 @@ Methods (``method=``):
 * ``"list+median"``: order prior, then the median filter.
 
 ``metric="ml"`` (default) or ``"normalized"`` (the paper's plain normalised distance) selects the
-per-sample costs for the soft methods.  The valid mask is
+per-sample costs for the soft methods.  ``levels="refit"`` re-estimates each pixel's on/off
+levels from its code frames (`edge.decode.levels`) before the final decode.  The valid mask is
 ``eligible & (confidence >= min_confidence | (confidence >= t_low & supported))`` where
 ``eligible = contrast >= min_contrast & column >= 0`` and ``supported`` means the column is
 within 1 of the median column of the eligible pixels with confidence >= t_high in the 5x5
@@ -37,6 +38,7 @@ from .spatial import confidence_median, order_prior, spatial_support
 from .tables import code_tables
 
 METHODS = ("hard", "soft", "list", "median", "list+median")
+LEVELS = ("calibration", "refit")
 METRICS = {"ml": kernels.METRIC_ML, "normalized": kernels.METRIC_NORMALIZED}
 
 #: Documented defaults of `decode`.
@@ -72,7 +74,7 @@ class Decoded:
     valid: (H, W) bool (column >= 0 exactly where valid).
     candidates: (H, W, 3) int32 best three codebook rows by distance (-1 where fewer exist).
     distances: (H, W, 3) float32 their distances (inf where absent).
-    stats: counters of the search: ``path`` ("lanes", "band", "scalar", "nary", "syndrome" or
+    stats: counters of the search: ``path`` ("lanes", "band", "band-scan", "scalar", "nary", "syndrome" or
         "hamming-search"), ``seconds``, and for the soft paths ``evaluated`` (codeword costs
         computed, summed over pixels) and ``brute_pixels``; the "lanes" path adds
         ``second_class_pixels`` / ``second_class_blocks`` / ``blocks`` / ``pending_blocks``.
@@ -116,10 +118,13 @@ def search(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
     """Exact top-3 search: (candidates (H,W,3) i32, distances (H,W,3) f32, confidence (H,W) f32, stats).
 
-    path (binary codes; default chosen from the code and band): "band" (scan of a band of at
-    most `BAND_BRUTE_MAX` columns, any binary code), "lanes" (weight-class search over blocks of
-    `kernels.LANES` pixels, column-linear codes), "scalar" (per-pixel branch-and-bound or brute
-    force, any binary code; the reference the others are tested against).  All are exact.
+    path (binary codes; default chosen from the code and band): "band" (a band of at most
+    `BAND_BRUTE_MAX` columns: folded Walsh-Hadamard blocks, `kernels.soft_band_fold`, for
+    column-linear codes, else the scan "band-scan"), "band-scan" (`kernels.soft_band`, a scan of
+    the band, any binary code), "lanes" (weight-class search over blocks of `kernels.LANES`
+    pixels, column-linear codes), "scalar" (per-pixel branch-and-bound or brute force, any
+    binary code; the reference the others are tested against).  All are exact and return the
+    same arrays.
     """
     tb = code_tables(code)
     h, w = stack.shape
@@ -138,8 +143,10 @@ def search(
             path = "lanes"
         else:
             path = "scalar"
-    if path == "band" and not use_band:
-        raise ValueError("path: 'band' needs min_disparity / max_disparity")
+    if path == "band" and not tb.column_linear:
+        path = "band-scan"
+    if path in ("band", "band-scan") and not use_band:
+        raise ValueError(f"path: {path!r} needs min_disparity / max_disparity")
     if path == "lanes" and not tb.column_linear:
         raise ValueError(f"path: 'lanes' needs a column-linear binary code, got {code.name!r}")
     args = (stack.frames, inv, has_inv, stack.white, stack.black, stack.scale, metric, sr2, ss2, q_scale)
@@ -149,6 +156,11 @@ def search(
                           cand, dist, conf)
         st = {"path": "nary", "brute_pixels": h * w, "evaluated": -1}
     elif path == "band":
+        stats = np.zeros((h, 2), np.int64)
+        kernels.soft_band_fold(*args, tb.fold_b, tb.fold_v, tb.fold_sgn, tb.fold_row, tb.fold_usign,
+                               columns, min_d, max_d, stripe, cand, dist, conf, stats)
+        st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
+    elif path == "band-scan":
         stats = np.zeros((h, 2), np.int64)
         kernels.soft_band(*args, tb.masks_t, columns, min_d, max_d, stripe, cand, dist, conf, stats)
         st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
@@ -171,7 +183,7 @@ def search(
         )
         st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
     else:
-        raise ValueError(f"path: expected 'band', 'lanes' or 'scalar', got {path!r}")
+        raise ValueError(f"path: expected 'band', 'band-scan', 'lanes' or 'scalar', got {path!r}")
     st["seconds"] = time.perf_counter() - t0
     return cand, dist, conf, st
 
@@ -219,6 +231,7 @@ def decode(
     columns: int | None = None,
     stripe: int = 1,
     bit_depth: int | None = None,
+    levels: str = "calibration",
 ) -> Decoded:
     """Decode a capture of `code` into projector columns.
 
@@ -226,11 +239,27 @@ def decode(
     the fully lit / dark projector, same dtype; inverse: optional (n, H, W) inverse-pattern
     frames.  min/max_disparity: candidate columns for camera column x are those whose projector
     columns [row*stripe, (row+1)*stripe) meet [x - max_disparity, x - min_disparity].
-    columns: codebook rows in use (projector width / stripe, default all).  See the module
-    docstring for methods, metrics and the valid mask.
+    columns: codebook rows in use (projector width / stripe, default all).  levels: the on/off
+    level of each pixel: "calibration" (white and black as given, the default) or "refit"
+    (`edge.decode.levels.decode_refined`: decode, refit each pixel's levels by least squares
+    from its own code frames plus white and black, decode again; about twice the time; not with
+    inverse frames).  See the module docstring for methods, metrics and the valid mask.
     """
     if method not in METHODS:
         raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+    if levels not in LEVELS:
+        raise ValueError(f"levels: expected one of {', '.join(LEVELS)}, got {levels!r}")
+    if levels == "refit":
+        if inverse is not None:
+            raise ValueError("levels: 'refit' expects no inverse frames (pattern + inverse decisions "
+                             "do not use the calibration levels), got inverse=")
+        from .levels import decode_refined  # levels builds on decode
+
+        return decode_refined(frames, white, black, code, method=method, bit_depth=bit_depth,
+                              min_disparity=min_disparity, max_disparity=max_disparity, metric=metric,
+                              sigma_r=sigma_r, sigma_s=sigma_s, min_contrast=min_contrast,
+                              min_confidence=min_confidence, t_low=t_low, t_high=t_high,
+                              spatial_check=spatial_check, columns=columns, stripe=stripe)
     if metric not in METRICS:
         raise ValueError(f"metric: expected one of {', '.join(METRICS)}, got {metric!r}")
     if not (sigma_r > 0 and sigma_s >= 0):
@@ -261,7 +290,8 @@ def decode(
         if spatial_check:
             valid |= eligible & (conf >= t_low) & spatial_support(column, conf, eligible, t_vote=t_high)
     if method in ("median", "list+median"):
-        column, valid = confidence_median(column, confidence, eligible & (column >= 0), t_low=t_low, t_high=t_high)
+        column, valid = confidence_median(column, confidence, eligible & (column >= 0), t_low=t_low,
+                                          t_high=t_high, candidates=cand)
     column = np.where(valid, column, -1).astype(np.int32)
     return Decoded(column=column, confidence=confidence, valid=column >= 0, candidates=cand,
                    distances=dist, stats=st)

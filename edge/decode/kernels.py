@@ -496,6 +496,8 @@ LANES = 64
 BAND_NET = 16
 #: Larger than any cost bound (an empty weight class).
 _NO_BOUND = np.int64(1) << np.int64(62)
+#: Band limits of the lanes past the right image edge in `soft_band_fold` (beyond any column).
+_FAR_COL = 1 << 30
 
 
 @njit(cache=True, inline="always")
@@ -1023,3 +1025,155 @@ def hard_lean(frames, inverse, has_inv, white, black, syn_col, info_bit, leader_
             out_cand[yy, xx, 2] = -1
             out_dist[yy, xx, 1] = np.inf
             out_dist[yy, xx, 2] = np.inf
+
+
+@njit(cache=True)
+def _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
+                   fold_b, fold_v, fold_sgn, fold_row, fold_usign, ncols, min_d, max_d, stripe,
+                   out_col, out_dist, out_conf, out_stats):
+    """Row yy of `soft_band_fold` (a plain function: keeps the parallel kernel small to compile)."""
+    n, height, width = frames.shape
+    L = LANES
+    R = np.zeros((n, L), np.float64)
+    RI = np.zeros((n, L), np.float64)
+    PA = np.zeros((8, L), np.float64)
+    Y = np.zeros((n, L), np.int32)
+    YY = np.zeros((2, n, L), np.int32)
+    dmin = np.zeros(L, np.float64)
+    active = np.zeros(L, np.bool_)
+    lo = np.zeros(L, np.int32)
+    hi = np.zeros(L, np.int32)
+    W = np.zeros(L, np.int32)
+    bsz = 1 << fold_b
+    nv = 1 << fold_v
+    Z = np.zeros(bsz * L, np.int32)
+    k1 = np.empty(L, np.int64)
+    k2 = np.empty(L, np.int64)
+    k3 = np.empty(L, np.int64)
+    pixels = 0
+    evaluated = 0
+    for x0 in range(0, width, L):
+        nact = _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
+                          yy, x0, True, min_d, max_d, stripe, ncols, R, RI, PA, Y, dmin, active, lo, hi)
+        if nact == 0:
+            for l in range(L):
+                if x0 + l < width:
+                    _write_none(out_col, out_dist, out_conf, yy, x0 + l)
+            continue
+        # union of the active lanes' bands; lanes past the image get an empty band that keeps
+        # lo and hi non-decreasing in l (so each column's lanes are one interval)
+        cmin = ncols
+        cmax = -1
+        for l in range(L):
+            if active[l]:
+                cmin = min(cmin, lo[l])
+                cmax = max(cmax, hi[l])
+                pixels += 1
+                evaluated += hi[l] - lo[l] + 1
+            if x0 + l >= width:
+                lo[l] = _FAR_COL
+                hi[l] = _FAR_COL
+        for l in range(L):
+            W[l] = 0
+            k1[l] = NO_KEY
+            k2[l] = NO_KEY
+            k3[l] = NO_KEY
+        for i in range(n):
+            yr = Y[i]
+            y0 = YY[0, i]
+            y1 = YY[1, i]
+            for l in range(L):
+                yv = yr[l]
+                W[l] += max(yv, -yv)
+                y0[l] = yv
+                y1[l] = -yv
+        for u in range(cmin >> fold_b, (cmax >> fold_b) + 1):
+            # fold: Z[(a, v), l] = sum over positions i with row a of +-y_i (sign of <g_i, col>
+            # on the v and u bits)
+            for j in range(bsz * L):
+                Z[j] = 0
+            for i in range(n):
+                zr = fold_row[i] * nv
+                su = fold_usign[u, i]
+                for v in range(nv):
+                    zo = (zr + v) * L
+                    zrow = Z[zo:zo + L]
+                    src = YY[fold_sgn[i, v] ^ su, i]
+                    for l in range(L):
+                        zrow[l] += src[l]
+            # Walsh-Hadamard transform over the row bits a: Z[(a, v), l] = corr(column)
+            h = nv * L
+            while h < bsz * L:
+                for r0 in range(0, bsz * L, 2 * h):
+                    za = Z[r0:r0 + h]
+                    zb = Z[r0 + h:r0 + 2 * h]
+                    for j in range(h):
+                        a = za[j]
+                        b = zb[j]
+                        za[j] = a + b
+                        zb[j] = a - b
+                h *= 2
+            # top-3 keys over the lanes whose band holds column c: lanes q .. p-1
+            cb = u << fold_b
+            q = 0
+            p = 0
+            for c in range(max(cmin, cb), min(cmax, cb + bsz - 1) + 1):
+                while q < L and hi[q] < c:
+                    q += 1
+                while p < L and lo[p] <= c:
+                    p += 1
+                if p <= q:
+                    continue
+                zo = (c - cb) * L
+                zs = Z[zo + q:zo + p]
+                ws = W[q:p]
+                a1 = k1[q:p]
+                a2 = k2[q:p]
+                a3 = k3[q:p]
+                cc = np.int64(c)
+                for j in range(p - q):
+                    # cost = (W + corr) / 2 (W + corr is even), key = cost << IDX_BITS | c
+                    key = (np.int64(np.int32(zs[j] + ws[j])) << (IDX_BITS - 1)) | cc
+                    t = a1[j]
+                    a1[j] = min(t, key)
+                    key = max(t, key)
+                    t = a2[j]
+                    a2[j] = min(t, key)
+                    key = max(t, key)
+                    a3[j] = min(a3[j], key)
+        for l in range(L):
+            xx = x0 + l
+            if xx >= width:
+                break
+            if not active[l]:
+                _write_none(out_col, out_dist, out_conf, yy, xx)
+            else:
+                _write(out_col, out_dist, out_conf, yy, xx, k1[l], k2[l], k3[l], dmin[l], q_scale)
+    out_stats[yy, 0] = pixels
+    out_stats[yy, 1] = evaluated
+
+
+@njit(cache=True, parallel=True)
+def soft_band_fold(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
+                   fold_b, fold_v, fold_sgn, fold_row, fold_usign, ncols, min_d, max_d, stripe,
+                   out_col, out_dist, out_conf, out_stats):
+    """Exact top-3 soft decoding of a column-linear binary code within a disparity band, LANES
+    pixels of a row at a time, by folded Walsh-Hadamard transforms of 2**fold_b-column blocks.
+
+    Column-linear: bit i of codeword `col` is <g_i, col> over GF(2) (g_i: `tables` fold_*), so
+    corr(col) = sum_i y_i (-1)**<g_i, col> and cost(col) = (sum_i |y_i| + corr(col)) / 2 (the
+    cost of the module docstring, bit for bit: C0 - sum_{c_i = 1} y_i).  Split
+    col = (u, a, v) (high bits, fold_b - fold_v row bits, fold_v low bits): within block u,
+    corr(u, a, v) = WHT over a of Z[a', v] = sum_{i: row(g_i) = a'} +-y_i, the sign being
+    (-1)**(<g_i, u> + <g_i, v>).  Per block and lane: n * 2**fold_v row adds and
+    (fold_b - fold_v) * 2**fold_b butterflies instead of 2**fold_b * n masked adds; the blocks
+    cover the union of the LANES pixels' bands.  The top-3 update (keys (cost << IDX_BITS) |
+    column, ties to the lower column) runs per column over exactly the lanes whose band [lo, hi]
+    holds it (lo, hi are non-decreasing in x, so these lanes form an interval).
+    Same outputs as `soft_band`; out_stats (H, 2): decoded pixels, candidate evaluations.
+    """
+    height = frames.shape[1]
+    for yy in prange(height):
+        _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
+                       fold_b, fold_v, fold_sgn, fold_row, fold_usign, ncols, min_d, max_d, stripe,
+                       out_col, out_dist, out_conf, out_stats)

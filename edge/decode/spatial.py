@@ -303,24 +303,102 @@ def spatial_outliers(column: np.ndarray, valid: np.ndarray, *, window: int = 7, 
     return out
 
 
+#: Column value of a non-voter in `_support` (far from every real column).
+_NO_VOTE = np.int32(-(1 << 30))
+#: Bit offsets of the packed counters of `_support`: voters, voters below, voters above.
+_LO_SHIFT = 10
+_HI_SHIFT = 20
+
+
+@njit(cache=True, inline="always")
+def _straddle_sum(vcol, c, yy, xx, radius, tol, nlo_is_p, nhi_is_p):
+    """da + db of the middle voter pair of pixel (yy, xx) when one side holds half the voters:
+    the extreme values next to that side (see `_support`)."""
+    height, width = vcol.shape
+    maxlo = -(1 << 30)
+    minmid = 1 << 30
+    maxmid = -(1 << 30)
+    minhi = 1 << 30
+    for y2 in range(max(0, yy - radius), min(height, yy + radius + 1)):
+        for x2 in range(max(0, xx - radius), min(width, xx + radius + 1)):
+            v = vcol[y2, x2]
+            if v == _NO_VOTE or (y2 == yy and x2 == xx):
+                continue
+            d = v - c
+            if d < -tol:
+                maxlo = max(maxlo, d)
+            elif d > tol:
+                minhi = min(minhi, d)
+            else:
+                minmid = min(minmid, d)
+                maxmid = max(maxmid, d)
+    if nlo_is_p and nhi_is_p:
+        return maxlo + minhi
+    if nlo_is_p:
+        return maxlo + minmid
+    return maxmid + minhi
+
+
 @njit(cache=True, parallel=True)
-def _support(col, conf, eligible, t_vote, radius, min_votes, tol, out):
+def _support(col, conf, eligible, t_vote, radius, min_votes, tol, vcol, out):
+    """Median test by counting: no sort, no per-pixel allocation, one row per prange step.
+
+    With d = (voter column) - c over the m voters of a pixel with column c: for odd m the
+    median lies in [c - tol, c + tol] iff at most m // 2 of the d are < -tol and at most m // 2
+    are > tol.  For even m = 2p the median is floor((a + b) / 2) of the middle pair, and
+    |median - c| <= tol iff -2 tol <= da + db <= 2 tol + 1; both are in [-tol, tol] (pass)
+    unless more than p of the d lie on one side (fail) or exactly p do: then a and b are the
+    extreme values next to that side, found by a rescan of that pixel's window (rare).
+    The counts of voters / below / above are packed into one int32 per pixel and accumulated
+    over whole rows per window offset (vectorised over x); non-voters count as "below" there and
+    are subtracted afterwards.  vcol: (H, W) int32 scratch.
+    """
     height, width = col.shape
     for yy in prange(height):
-        buf = np.empty((2 * radius + 1) ** 2, np.int64)
         for xx in range(width):
-            out[yy, xx] = False
             c = col[yy, xx]
-            if not eligible[yy, xx] or c < 0:
-                continue
-            m = 0
-            for y2 in range(max(0, yy - radius), min(height, yy + radius + 1)):
-                for x2 in range(max(0, xx - radius), min(width, xx + radius + 1)):
-                    if (y2 != yy or x2 != xx) and eligible[y2, x2] and conf[y2, x2] >= t_vote and col[y2, x2] >= 0:
-                        buf[m] = col[y2, x2]
-                        m += 1
-            if m >= min_votes:
-                out[yy, xx] = abs(c - _median_sorted(buf, m)) <= tol
+            vote = eligible[yy, xx] and conf[yy, xx] >= t_vote and c >= 0
+            vcol[yy, xx] = c if vote else _NO_VOTE
+    cmask = (1 << _LO_SHIFT) - 1
+    ntol = np.int32(-tol)
+    ptol = np.int32(tol)
+    for yy in prange(height):
+        acc = np.zeros(width, np.int32)
+        c = col[yy]
+        for y2 in range(max(0, yy - radius), min(height, yy + radius + 1)):
+            vr = vcol[y2]
+            for dx in range(-radius, radius + 1):
+                if y2 == yy and dx == 0:
+                    continue
+                # non-voters (_NO_VOTE) count as "below"; corrected with the voter count below
+                x_lo = max(0, -dx)
+                x_hi = min(width, width - dx)
+                vs = vr[x_lo + dx:x_hi + dx]
+                cs = c[x_lo:x_hi]
+                ac = acc[x_lo:x_hi]
+                for j in range(x_hi - x_lo):
+                    v = vs[j]
+                    d = np.int32(v - cs[j])
+                    ac[j] += (np.int32(v != _NO_VOTE) + (np.int32(d < ntol) << _LO_SHIFT)
+                              + (np.int32(d > ptol) << _HI_SHIFT))
+        ny = min(height, yy + radius + 1) - max(0, yy - radius)
+        for xx in range(width):
+            a = acc[xx]
+            mm = a & cmask
+            nwin = ny * (min(width, xx + radius + 1) - max(0, xx - radius)) - 1
+            nlo = ((a >> _LO_SHIFT) & cmask) - (nwin - mm)
+            nhi = a >> _HI_SHIFT
+            ok = eligible[yy, xx] and c[xx] >= 0 and mm >= min_votes
+            if ok:
+                p = mm // 2
+                if mm % 2 == 1:
+                    ok = nlo <= p and nhi <= p
+                elif nlo > p or nhi > p:
+                    ok = False
+                elif nlo == p or nhi == p:
+                    s = _straddle_sum(vcol, c[xx], yy, xx, radius, tol, nlo == p, nhi == p)
+                    ok = -2 * tol <= s and s <= 2 * tol + 1
+            out[yy, xx] = ok
 
 
 def spatial_support(
@@ -335,9 +413,18 @@ def spatial_support(
 ) -> np.ndarray:
     """(H, W) bool: the pixel's column is within `tol` of the median of the columns of the
     high-confidence (>= t_vote) eligible pixels in its window x window neighbourhood (itself
-    excluded), with at least `min_votes` voters.  Columns are not changed."""
+    excluded), with at least `min_votes` voters (an even count takes the mean of the two middle
+    columns, rounded down).  Columns are not changed.  window: odd, at most 31 (packed counters)."""
+    if window < 1 or window % 2 == 0 or window > 31:
+        raise ValueError(f"window: expected an odd size 1..31, got {window}")
+    if min_votes < 1 or tol < 0:
+        raise ValueError(f"spatial_support: expected min_votes >= 1, tol >= 0, got {min_votes}, {tol}")
     col = np.ascontiguousarray(column, dtype=np.int32)
+    for name, a in (("confidence", confidence), ("eligible", eligible)):
+        if np.shape(a) != col.shape:
+            raise ValueError(f"{name}: expected shape {col.shape} to match column, got {np.shape(a)}")
     out = np.empty(col.shape, np.bool_)
+    vcol = np.empty(col.shape, np.int32)
     _support(col, np.ascontiguousarray(confidence, np.float32), np.ascontiguousarray(eligible, np.bool_),
-             float(t_vote), window // 2, int(min_votes), int(tol), out)
+             float(t_vote), window // 2, int(min_votes), int(tol), vcol, out)
     return out

@@ -31,6 +31,11 @@ from ..codes import Code
 MAX_SYNDROME_BITS = 20
 #: Bits per lookup-table group in the cost kernels (tables of 2**GROUP_BITS entries).
 GROUP_BITS = 6
+#: Column bits of a Walsh-Hadamard block / of a fold row in `kernels.soft_band_fold` (measured
+#: with tools/bench_decode.py's input, ecc-22-10 and a 128-column band: blocks of 32 / 64 / 128
+#: columns 82 / 77 / 82 ms single-threaded; 1-3 row bits within 1 ms of each other).
+FOLD_BLOCK_BITS = 6
+FOLD_LANE_BITS = 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,6 +70,11 @@ class CodeTables:
             each class in dpos (class c holds (cls_start[c+1] - cls_start[c]) * cls_weight[c]).
         dpos: int32 positions of every nonzero codeword (class by class); dcol: int32 columns.
         masks_t: (n, size) int32 codebook transposed, -1 where the bit is 1, else 0 (band scan).
+        fold_b, fold_v: column bits of a block / of a row of `kernels.soft_band_fold`
+            (column-linear codes; 0 otherwise).
+        fold_sgn: (n, 2**fold_v) int64 parity of g_i & v (g_i: the column bits whose XOR is
+            bit i of the codeword); fold_row: (n,) int64 row bits (g_i >> fold_v) of the block;
+            fold_usign: (2**(k - fold_b), n) int64 parity of g_i & (u << fold_b) for block u.
     """
 
     n: int
@@ -100,6 +110,11 @@ class CodeTables:
     dpos: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
     dcol: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
     masks_t: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), np.int32))
+    fold_b: int = 0
+    fold_v: int = 0
+    fold_sgn: np.ndarray = field(default_factory=lambda: np.zeros((0, 1), np.int64))
+    fold_row: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    fold_usign: np.ndarray = field(default_factory=lambda: np.zeros((1, 0), np.int64))
 
     @property
     def has_info(self) -> bool:
@@ -301,6 +316,7 @@ def _lane_tables(cb, masks, linear, info, comp_info, comp_syn, col_of_info, lead
     if not column_linear:
         return out
     out["col_bit"] = col_of_info[info_bit].astype(np.int64)
+    out.update(_fold_tables(masks, size_bits, n))
     if leader.size:
         out["leader_col"] = col_of_info[out["leader_info"]].astype(np.int64)
     weight = np.bitwise_count(diff_masks).astype(np.int64)  # diff_masks are sorted by weight
@@ -314,6 +330,23 @@ def _lane_tables(cb, masks, linear, info, comp_info, comp_syn, col_of_info, lead
         dcol=col_of_info[_compress(diff_masks, comp_info)].astype(np.int32),
     )
     return out
+
+
+def _fold_tables(masks: np.ndarray, size_bits: int, n: int) -> dict:
+    """`CodeTables` fold_* fields of a column-linear code (see `kernels.soft_band_fold`)."""
+    b = min(FOLD_BLOCK_BITS, size_bits)
+    v = min(FOLD_LANE_BITS, b)
+    g = np.zeros(n, np.int64)  # bit i of masks[col] = parity(g_i & col)
+    for j in range(size_bits):
+        g |= ((masks[1 << j] >> np.arange(n, dtype=np.uint64)) & np.uint64(1)).astype(np.int64) << j
+    def parity(x):
+        return (np.bitwise_count(np.asarray(x, np.int64)) & 1).astype(np.int64)
+    return {
+        "fold_b": b, "fold_v": v,
+        "fold_sgn": np.ascontiguousarray(parity(g[:, None] & np.arange(1 << v)[None, :])),
+        "fold_row": ((g >> v) & ((1 << (b - v)) - 1)).astype(np.int64),
+        "fold_usign": np.ascontiguousarray(parity(np.arange(1 << (size_bits - b))[:, None] & (g >> b)[None, :])),
+    }
 
 
 def code_tables(code: Code) -> CodeTables:
