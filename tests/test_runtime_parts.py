@@ -46,6 +46,21 @@ def test_assembly_complete_stacks():
     assert asm.counters.stacks_complete == 2 and asm.counters.stacks_incomplete == 0
 
 
+def test_assembly_flush_at_stop_counts_cut_stack_not_incomplete():
+    sched = stack_schedule(3)
+    frames = _frames(sched, 0, 0) + _frames(sched, 1, 5)[:2]
+    asm = StackAssembler(sched)
+    for f in frames:
+        asm.push(f)
+    asm.flush(stopping=True)  # the service stopped while stack 1 was being captured
+    assert asm.counters.stacks_cut_at_stop == 1 and asm.counters.stacks_incomplete == 0
+    asm = StackAssembler(sched)
+    for f in frames:
+        asm.push(f)
+    asm.flush()  # end of a recording: a partial stack is an incomplete one
+    assert asm.counters.stacks_cut_at_stop == 0 and asm.counters.stacks_incomplete == 1
+
+
 def test_assembly_sequence_gap_drops_stack_and_counts():
     sched = stack_schedule(3)
     asm = StackAssembler(sched)

@@ -50,6 +50,7 @@ class AssemblyCounters:
     frames_in: int = 0
     stacks_complete: int = 0
     stacks_incomplete: int = 0
+    stacks_cut_at_stop: int = 0
     sequence_gaps: int = 0
     out_of_order: int = 0
     unexpected_frames: int = 0
@@ -123,6 +124,16 @@ class StackAssembler:
         c.stacks_complete += 1
         return stack
 
-    def flush(self) -> None:
-        """End of stream: a partly assembled stack is dropped and counted."""
+    def flush(self, *, stopping: bool = False) -> None:
+        """End of stream: a partly assembled stack is dropped and counted.
+
+        With ``stopping=True`` (the service was asked to stop) a stack that was simply still being
+        captured is counted in ``stacks_cut_at_stop`` instead of ``stacks_incomplete``; a stack that
+        was already broken (gap, late or unexpected frame) still counts as incomplete.
+        """
+        if stopping and self._stack is not None and self._frames and not self._broken:
+            self.counters.stacks_cut_at_stop += 1
+            self._frames = []
+            self._stack = None
+            return
         self._drop_current()

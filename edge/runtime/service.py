@@ -146,7 +146,7 @@ class Service:
             self.counters.last_error = f"sensor: {type(exc).__name__}: {exc}"
             self._stop.set()
         finally:
-            self.assembler.flush()
+            self.assembler.flush(stopping=self._stop.is_set())
             self._capture_done.set()
             self.queue.close()
 
@@ -231,6 +231,7 @@ class Service:
             "stacks_dropped": a.stacks_incomplete + self.queue.dropped,
             "stacks_dropped_stale": self.queue.dropped,
             "stacks_dropped_incomplete": a.stacks_incomplete,
+            "stacks_cut_at_stop": a.stacks_cut_at_stop,
             "sequence_gaps": a.sequence_gaps,
             "out_of_order": a.out_of_order,
             "edc_rounds": last.edc_rounds if last is not None else 0,
