@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from edge.profiles import apply_update, list_profiles, load_profile
-from edge.runtime.assembly import Stack, StackAssembler
+from edge.runtime.assembly import Stack
 from edge.runtime.pipeline import make_pipeline, pipeline_kind
 from edge.sensors import open_sensor
 from edge.sensors.base import EventSlice

@@ -10,7 +10,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from _service_helpers import DATA, TEST_PROFILE, load_test_profile

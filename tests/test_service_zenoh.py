@@ -3,7 +3,6 @@ a subscriber that goes away and comes back."""
 
 from __future__ import annotations
 
-import json
 import os
 import socket
 import subprocess

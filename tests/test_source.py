@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from edge.codes.source import (
-    correlation, family, interference_windows, periodic_correlation, source_code, spread, worst_interference,
+    family, periodic_correlation, source_code, spread, worst_interference,
 )
 from edge.source.events import EVENT_DTYPE, EventSensor, event_slices, make_events, simulate_events
 from edge.source.matched_filter import (

@@ -13,7 +13,8 @@ import cv2
 import numpy as np
 
 from ..decode import METHODS, decode
-from ..decode.layouts import LAYOUTS, load, parse_projector
+from ..decode.layouts import LAYOUTS, load
+from ._args import parse_size
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -42,7 +43,7 @@ def confidence_image(confidence: np.ndarray) -> np.ndarray:
 
 
 def run(args: argparse.Namespace) -> int:
-    projector = parse_projector(args.projector)
+    projector = parse_size(args.projector, option="--projector", minimum=2)
     cap = load(args.directory, args.layout, projector)
     d = decode(cap.frames, cap.white, cap.black, cap.code, method=args.method, inverse=cap.inverse,
                columns=cap.columns)

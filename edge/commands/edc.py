@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ._args import parse_size
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("edc", help="error detection (CRC) and adaptive re-projection")
@@ -26,13 +28,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     e.set_defaults(func=_eval)
 
 
-def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise ValueError(f"--size must be WxH, e.g. 256x192, got {text!r}") from None
-    return w, h
-
 
 def _run(args: argparse.Namespace) -> int:
     from edge.sim import CameraModel
@@ -40,7 +35,7 @@ def _run(args: argparse.Namespace) -> int:
     from edge.edc.evaluate import make_gi_scene, score_loop
     from edge.edc.gupta import EnsembleScheme
 
-    w, h = _size(args.size)
+    w, h = parse_size(args.size)
     scene = make_gi_scene(args.scene, w, h, args.seed)
     scheme = EnsembleScheme() if args.code == "gupta" else args.code
     opts = {"neighbour_tolerance": None} if args.no_support else {}
@@ -59,7 +54,7 @@ def _run(args: argparse.Namespace) -> int:
 def _eval(args: argparse.Namespace) -> int:
     from edge.edc.report import run_report
 
-    w, h = _size(args.size)
+    w, h = parse_size(args.size)
     run_report(args.out, width=w, height=h, seed=args.seed, command=f"edge edc eval --size {args.size}")
     print(f"wrote {args.out}/README.md, roc.png, loop.png")
     return 0

@@ -4,19 +4,11 @@ from __future__ import annotations
 
 import argparse
 
+from ._args import parse_size
+
 from edge.codes import get_code
 from edge.patterns import write_patterns
 
-
-def parse_size(text: str) -> tuple[int, int]:
-    """'1024x768' -> (1024, 768)."""
-    try:
-        w, h = (int(t) for t in text.lower().split("x"))
-    except ValueError:
-        raise ValueError(f"--size expects WIDTHxHEIGHT such as 1024x768, got {text!r}") from None
-    if w < 1 or h < 1:
-        raise ValueError(f"--size must be positive, got {text!r}")
-    return w, h
 
 
 def _write(args: argparse.Namespace) -> int:

@@ -9,17 +9,10 @@ from __future__ import annotations
 
 import argparse
 
+from ._args import parse_size
+
 from ..codes.source import PAPER_CODES, correlation_report, family, source_code, worst_interference
 
-
-def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise ValueError(f"size must be WIDTHxHEIGHT, got {text!r}") from None
-    if w < 16 or h < 16:
-        raise ValueError(f"size must be at least 16x16, got {text!r}")
-    return w, h
 
 
 def _codes(args: argparse.Namespace) -> int:
@@ -38,7 +31,7 @@ def _codes(args: argparse.Namespace) -> int:
 def _event_demo(args: argparse.Namespace) -> int:
     from ..source.event_sl import EventSLConfig, event_metrics, run_event_sl
 
-    w, h = _size(args.size)
+    w, h = parse_size(args.size, minimum=16)
     cfg = EventSLConfig(width=w, height=h, code=args.code, flicker_hz=args.flicker, periods=args.periods)
     print(f"{'run':<28}{'own kept':>9}{'foreign rej':>12}{'flicker rej':>12}{'valid':>7}{'MAE px':>8}{'agree1':>8}")
     for coded in (False, True):
@@ -55,7 +48,7 @@ def _event_demo(args: argparse.Namespace) -> int:
 def _curtain_demo(args: argparse.Namespace) -> int:
     from ..source.curtain import CurtainConfig, run_curtain
 
-    w, h = _size(args.size)
+    w, h = parse_size(args.size, minimum=16)
     cfg = CurtainConfig(width=w, height=h)
     print(f"{'codes':<30}{'phase':>7}{'false det':>11}{'missed':>9}")
     runs = [(("1", "1"), 0.0), (("1100", "0101"), 0.0), (("1100", "0101"), 1.0), (("1100", "0101"), 2.0)]

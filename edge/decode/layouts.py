@@ -41,16 +41,6 @@ class Capture:
     columns: int
 
 
-def parse_projector(text: str) -> tuple[int, int]:
-    """'1024x768' -> (1024, 768)."""
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise ValueError(f"projector size: expected WIDTHxHEIGHT such as 1024x768, got {text!r}") from None
-    if w < 2 or h < 2:
-        raise ValueError(f"projector size: expected at least 2x2, got {text!r}")
-    return w, h
-
 
 def _read_gray(path: Path) -> np.ndarray:
     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)

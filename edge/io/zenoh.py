@@ -45,7 +45,7 @@ from typing import Any, Callable, Iterable, Mapping
 import numpy as np
 import zenoh
 
-from edge.profiles import Profile, ProfileError, apply_update, profile_to_dict
+from edge.profiles import Profile, apply_update, profile_to_dict
 from edge.profiles.settings import ZenohSettings
 
 __all__ = [

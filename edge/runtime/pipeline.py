@@ -24,7 +24,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..sensors.base import BLACK, WHITE, Frame, layout_schedule, parse_projector_frame, stack_schedule
+from ..sensors.base import Frame, layout_schedule
 from .assembly import Stack
 from .depth import column_to_depth_mm, confidence_to_u8
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..sensors.base import Frame, parse_projector_frame
 from .assembly import StackAssembler
-from .pipeline import DepthPipeline, DepthResult, make_pipeline, pipeline_kind
+from .pipeline import DepthResult, make_pipeline, pipeline_kind
 
 
 @dataclass

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..codes.source import SourceCode, source_code
+from ..codes.source import source_code
 from ..sim import Geometry, Scene, make_scene
 from .matched_filter import DEFAULT_THRESHOLD, despread
 
