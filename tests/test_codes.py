@@ -11,7 +11,9 @@ from edge.codes.families import bch, bch_generator_poly, bch_table, hamming, ree
 from edge.codes.gfq import gf_inv, gf_mul
 from edge.codes.linear import column_messages, golay, shorten
 from edge.codes.nary import qary_gray_digits, reed_solomon, reed_solomon_generator_poly
-from edge.codes.search import search_code, search_parity_columns
+from edge.codes.search import (
+    _pack, _weight_profile, search_code, search_cyclic, search_generator_columns, search_parity_columns,
+)
 from edge.codes.table import KNOWN_K10, table_for_k
 
 EXPECTED_D_MIN = {
@@ -199,15 +201,32 @@ def test_best_bad_input():
         Code(name="big", family="x", codebook=np.zeros((2**14, 20), np.uint8), k=14)
 
 
-def test_search_is_deterministic_and_reaches_d_min():
-    a, da = search_parity_columns(20, 8, seed=3, iterations=3000)
-    b, db = search_parity_columns(20, 8, seed=3, iterations=3000)
+def test_tabu_search_is_deterministic_and_reaches_best_known_d_min():
+    a, da, ca = search_generator_columns(20, 8, seed=3, iterations=3000)
+    b, db, cb = search_generator_columns(20, 8, seed=3, iterations=3000)
     np.testing.assert_array_equal(a, b)
-    assert da == db >= 6  # best known [20, 8] is 8; Griesmer 8
-    code = search_code(31, 10)
-    assert code.family == "search" and code.systematic
-    assert 10 <= code.d_min <= get_code("ecc-31-10").d_min == 12
-    assert get_code("search-31-10").d_min == code.d_min
+    assert da == db == 8 and ca == cb  # best known [20, 8] is 8 = Griesmer bound
+    cols, d = search_parity_columns(20, 8, seed=3, iterations=3000)
+    assert cols.shape == (12,) and d == 8
+    # (22, 10): the tabu search alone reaches the best known 8; the Code recomputes d_min exhaustively
+    code = search_code(22, 10, method="linear")
+    assert code.d_min == 8 and code.systematic and "tabu" in code.construction
+    assert search_generator_columns(31, 10, seed=0, iterations=4000)[1] >= 10
+
+
+def test_cyclic_search_and_registry_reach_the_paper_codes():
+    code = get_code("search-31-10")
+    assert code.family == "search" and code.systematic and "cyclic" in code.construction
+    assert code.d_min == get_code("ecc-31-10").d_min == 12  # exhaustive d_min of the Code
+    assert search_code(31, 10, method="cyclic").d_min == 12
+    g, d, count, _ = search_cyclic(22, 10)
+    assert d == 8 and count == get_code("ecc-22-10").weight_distribution()[8]
+    assert get_code("search-22-10").d_min == 8
+    # the Gray-code weight kernel agrees with the Code's exhaustive weight distribution
+    wd = code.weight_distribution()
+    assert _weight_profile(_pack(code.generator)) == (12, wd[12])
+    # where the cyclic family is weak the tabu search wins: [40, 10] cyclic gives 10 only
+    assert search_code(40, 10, iterations=4000).d_min >= 13
 
 
 def test_poisson_disk_search_is_nonlinear_and_exact():
@@ -223,6 +242,8 @@ def test_search_bad_input():
         search_code(40, 17)
     with pytest.raises(ValueError, match="method"):
         search_code(20, 8, method="anneal")
+    with pytest.raises(ValueError, match="iterations"):
+        search_generator_columns(20, 8, iterations=0)
 
 
 def test_nary_bad_input():
