@@ -148,6 +148,25 @@ def test_band_fold_equals_band_scan(name):
             assert got[3]["evaluated"] == ref[3]["evaluated"]
 
 
+def test_band_fold_wide_keys():
+    """Costs beyond the 32-bit keys of the folded band kernel (tiny noise model: every per-sample
+    cost clips at Y_CLIP) are redone with 64-bit keys: still exactly the band scan's output."""
+    code = get_code("ecc-22-10")
+    rng = np.random.default_rng(8)
+    h, w = 3, LANES + 21
+    cols = rng.integers(0, code.size, (h, w))
+    cap = make_capture(code, cols, rng=rng, albedo=rng.uniform(0.05, 0.9, (h, w)), sigma_s=0.02)
+    st = validate(cap.frames, cap.white, cap.black, code)
+    for sr, ss in ((1e-4, 0.0), (0.003, 0.01)):
+        kw = dict(metric=METRIC_ML, sigma_r=sr, sigma_s=ss, columns=code.size, band=(True, -10, 60), stripe=1)
+        ref = decoder.search(st, code, path="band-scan", **kw)
+        got = decoder.search(st, code, path="band", **kw)
+        for a, b in zip(ref[:3], got[:3]):
+            np.testing.assert_array_equal(a, b, err_msg=f"{sr} {ss}")
+        if sr == 1e-4:
+            assert got[3]["wide_key_pixels"] > 0.5 * h * w
+
+
 def test_hard_is_nearest_codeword():
     code = get_code("ecc-22-10")
     rng = np.random.default_rng(12)

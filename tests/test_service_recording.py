@@ -67,18 +67,20 @@ def test_replay_detects_a_changed_depth(tmp_path):
     out = tmp_path / "sim.mcap"
     r = edge("sim", "record", out, "--stacks", "2", "--profile", TEST_PROFILE)
     assert r.returncode == 0, r.stderr
-    original = replay_mod.DepthPipeline.process
+    from edge.runtime.pipeline import DepthPipeline
+
+    original = DepthPipeline.process
 
     def tampered(self, stack, masked_capture=None):
         res = original(self, stack, masked_capture)
         res.depth_mm[0, 0] ^= 1
         return res
 
-    replay_mod.DepthPipeline.process = tampered
+    DepthPipeline.process = tampered
     try:
         report = replay_mod.replay_recording(out)
     finally:
-        replay_mod.DepthPipeline.process = original
+        DepthPipeline.process = original
     assert not report.ok and len(report.mismatches) == 2
     assert "depth: 1 of 19200 pixels differ" in report.mismatches[0]
 

@@ -149,7 +149,8 @@ def main(argv=None) -> int:
     band = (True, min_d, max_d)
     r, first, med, cpu = timed(lambda: decoder.search(st, code, band=band, **kw), args.repeats)
     report(f"search: soft top-3, {args.band}-column band", r[0][..., 0], first, med, cpu, bmed)
-    print(f"    path {r[3]['path']}: candidates / pixel {r[3]['evaluated'] / (h * w):.1f}", flush=True)
+    print(f"    path {r[3]['path']}: candidates / pixel {r[3]['evaluated'] / (h * w):.1f}; pixels redone with "
+          f"64-bit keys {r[3].get('wide_key_pixels', 0)}", flush=True)
     r2, first, med, cpu = timed(lambda: decoder.search(st, code, band=band, path="band-scan", **kw), args.repeats)
     report(f"search: soft top-3, {args.band}-col band, plain scan", r2[0][..., 0], first, med, cpu, bmed)
     same = all(np.array_equal(a, b) for a, b in zip(r[:3], r2[:3]))

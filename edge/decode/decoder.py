@@ -36,6 +36,7 @@ from . import kernels
 from .inputs import Stack, validate
 from .spatial import confidence_median, order_prior, spatial_support
 from .tables import code_tables
+from .validity import eligible_column, final_mask
 
 METHODS = ("hard", "soft", "list", "median", "list+median")
 LEVELS = ("calibration", "refit")
@@ -77,7 +78,9 @@ class Decoded:
     stats: counters of the search: ``path`` ("lanes", "band", "band-scan", "scalar", "nary", "syndrome" or
         "hamming-search"), ``seconds``, and for the soft paths ``evaluated`` (codeword costs
         computed, summed over pixels) and ``brute_pixels``; the "lanes" path adds
-        ``second_class_pixels`` / ``second_class_blocks`` / ``blocks`` / ``pending_blocks``.
+        ``second_class_pixels`` / ``second_class_blocks`` / ``blocks`` / ``pending_blocks``; the
+        "band" path adds ``wide_key_pixels`` (pixels whose costs exceeded the 32-bit keys and were
+        redone with 64-bit keys, see `kernels.soft_band_fold`).
     """
 
     column: np.ndarray
@@ -151,22 +154,32 @@ def search(
         raise ValueError(f"path: 'lanes' needs a column-linear binary code, got {code.name!r}")
     args = (stack.frames, inv, has_inv, stack.white, stack.black, stack.scale, metric, sr2, ss2, q_scale)
     t0 = time.perf_counter()
+    # integer frames under the ML metric: the per-pixel variance logs from a table over the raw
+    # levels (uint16: only where the image has more pixels than levels)
+    levels = 0
+    if metric == kernels.METRIC_ML and not has_inv:
+        if stack.frames.dtype == np.uint8:
+            levels = 256
+        elif stack.frames.dtype == np.uint16 and h * w >= 65536:
+            levels = 65536
+    ltab = kernels.log_levels(levels, stack.scale, sr2, ss2)
     if code.q != 2:
         kernels.soft_nary(*args, code.q, tb.codebook, columns, use_band, min_d, max_d, stripe,
                           cand, dist, conf)
         st = {"path": "nary", "brute_pixels": h * w, "evaluated": -1}
     elif path == "band":
-        stats = np.zeros((h, 2), np.int64)
-        kernels.soft_band_fold(*args, tb.fold_b, tb.fold_v, tb.fold_sgn, tb.fold_row, tb.fold_usign,
-                               columns, min_d, max_d, stripe, cand, dist, conf, stats)
-        st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
+        stats = np.zeros((h, 3), np.int64)
+        kernels.soft_band_fold(*args, ltab, tb.fold_b, tb.fold_v, tb.fold_sgn, tb.fold_row, tb.fold_usign,
+                               tb.masks_t, columns, min_d, max_d, stripe, cand, dist, conf, stats)
+        st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum()),
+              "wide_key_pixels": int(stats[:, 2].sum())}
     elif path == "band-scan":
         stats = np.zeros((h, 2), np.int64)
-        kernels.soft_band(*args, tb.masks_t, columns, min_d, max_d, stripe, cand, dist, conf, stats)
+        kernels.soft_band(*args, ltab, tb.masks_t, columns, min_d, max_d, stripe, cand, dist, conf, stats)
         st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
     elif path == "lanes":
         stats = np.zeros((h, 5), np.int64)
-        kernels.soft_lanes(*args, tb.masks, tb.syn_col, tb.col_bit, tb.leader, tb.leader_col,
+        kernels.soft_lanes(*args, ltab, tb.masks, tb.syn_col, tb.col_bit, tb.leader, tb.leader_col,
                            tb.has_leader, tb.cls_weight, tb.cls_start, tb.cls_pstart, tb.dpos,
                            tb.dcol, columns, use_band, min_d, max_d, stripe, cand, dist, conf, stats)
         tot = stats.sum(axis=0)
@@ -279,16 +292,24 @@ def decode(
     else:
         cand, dist, conf, st = search(stack, code, metric=METRICS[metric], sigma_r=sigma_r,
                                       sigma_s=sigma_s, columns=ncols, band=band, stripe=stripe)
-    contrast = (stack.white.astype(np.float32) - stack.black.astype(np.float32)) * np.float32(stack.scale)
-    eligible = (contrast >= min_contrast) & (cand[..., 0] >= 0)
+    # eligible = contrast >= min_contrast & column >= 0 (contrast in float32), one fused pass
+    column0 = np.empty((h, w), np.int32)
+    eligible = np.empty((h, w), np.bool_)
+    eligible_column(cand, stack.white, stack.black, np.float32(stack.scale), np.float32(min_contrast),
+                    column0, eligible)
     confidence = conf
+    if method in ("soft", "hard"):
+        support = spatial_support(column0, conf, eligible, t_vote=t_high) if spatial_check else eligible
+        column = np.empty((h, w), np.int32)
+        valid = np.empty((h, w), np.bool_)
+        final_mask(column0, conf, eligible, support, bool(spatial_check), np.float32(min_confidence),
+                   np.float32(t_low), column, valid)
+        return Decoded(column=column, confidence=confidence, valid=valid, candidates=cand, distances=dist,
+                       stats=st)
     if method in ("list", "list+median"):
         column, valid = order_prior(cand, confidence, eligible, t_high=t_high, t_low=t_low)
     else:
-        column = cand[..., 0].copy()
-        valid = eligible & (conf >= min_confidence)
-        if spatial_check:
-            valid |= eligible & (conf >= t_low) & spatial_support(column, conf, eligible, t_vote=t_high)
+        column = column0
     if method in ("median", "list+median"):
         column, valid = confidence_median(column, confidence, eligible & (column >= 0), t_low=t_low,
                                           t_high=t_high, candidates=cand)

@@ -91,7 +91,7 @@ def validate(
         raise ValueError(f"expected frames, white, black (and inverse) of one dtype, got {given}")
     if h == 0 or w == 0:
         raise ValueError(f"frames: expected a non-empty image, got shape {frames.shape}")
-    if not (white.astype(np.float64) > black.astype(np.float64)).any():
+    if not np.greater(white, black).any():  # one dtype (checked above): compared as is
         raise ValueError("white/black: expected white brighter than black somewhere, got white <= black everywhere")
     dtype = frames.dtype
     if dtype == np.uint8:

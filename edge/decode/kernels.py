@@ -49,8 +49,17 @@ Fast paths (same keys, same ties, bit-identical results; tests compare them with
 * `hard_lean`: hard decisions, syndrome and information bits as XORs of per-position
   contributions over contiguous x, then one coset-leader lookup per pixel.
 
+* `soft_band_fold` (column-linear codes, a band): folded Walsh-Hadamard transforms of 64-column
+  blocks for LANES pixels at a time, top-3 on 32-bit keys with an exact 64-bit redo of the rare
+  pixels whose costs exceed them.
+
 Integer ranges: |y_i| <= Y_CLIP = 2**24, so costs (<= n * 2**24) fit int32 for
 n <= 64 (the binary limit) and keys (cost << IDX_BITS | column) fit int64.
+
+Per-pixel constants: for integer frames under METRIC_ML without inverse frames the two logs of
+`_pixel_params` come from a table over the raw levels (`log_levels`, the same log); the
+lane-parallel sample loop of `_block_llr` has an unswitched copy for that metric.  Both give the
+same values bit for bit.
 """
 
 from __future__ import annotations
@@ -129,6 +138,28 @@ def _pixel_params(a, b, has_inv, metric, sr2, ss2):
         la -= m
         lb -= m
     return 1.0 / va, 1.0 / vb, la, lb, 1.0 / (va + vb), 1.0 / (a - b)
+
+
+@njit(cache=True, inline="always")
+def _pixel_params_tab(a, b, log_va, log_vb, sr2, ss2):
+    """`_pixel_params` for METRIC_ML without inverse frames with the two logs given (from
+    `log_levels`): the same values, bit for bit."""
+    va = sr2 + ss2 * a
+    vb = sr2 + ss2 * b
+    m = min(log_va, log_vb)
+    return 1.0 / va, 1.0 / vb, log_va - m, log_vb - m, 1.0 / (va + vb), 1.0 / (a - b)
+
+
+@njit(cache=True)
+def log_levels(levels, scale, sr2, ss2):
+    """(levels,) float64 table of log(sr2 + ss2 * (v * scale)) for raw values v = 0..levels-1:
+    the logs `_pixel_params` takes of a pixel's white / black variance (METRIC_ML without
+    inverse frames), so integer frames pay 2 logs per raw level instead of per pixel.  Computed
+    here (not in numpy) so that it is the same log, bit for bit."""
+    out = np.empty(levels, np.float64)
+    for v in range(levels):
+        out[v] = np.log(sr2 + ss2 * (v * scale))
+    return out
 
 
 @njit(cache=True, inline="always")
@@ -501,9 +532,11 @@ _FAR_COL = 1 << 30
 
 
 @njit(cache=True, inline="always")
-def _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, yy, x0,
-               use_band, min_d, max_d, stripe, ncols, R, RI, PA, Y, dmin, active, lo, hi):
+def _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, ltab, yy,
+               x0, use_band, min_d, max_d, stripe, ncols, R, RI, PA, Y, dmin, active, lo, hi):
     """Quantised cost differences of the LANES pixels x0.. of row yy, lane-parallel.
+
+    ltab: `log_levels` table (empty: the logs of `_pixel_params` are computed per pixel).
 
     Fills Y (n, LANES) int32 (= `_pixel_llr`'s y, bit for bit), dmin, active (white > black,
     inside the image, non-empty band [lo, hi]); inactive lanes get finite dummy values.
@@ -529,7 +562,11 @@ def _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
             b = 0.0
         active[l] = act
         nact += np.int64(act)
-        iva, ivb, la, lb, ivs, idiff = _pixel_params(a, b, has_inv, metric, sr2, ss2)
+        if act and ltab.shape[0] > 0:
+            iva, ivb, la, lb, ivs, idiff = _pixel_params_tab(a, b, ltab[np.int64(white[yy, xx])],
+                                                             ltab[np.int64(black[yy, xx])], sr2, ss2)
+        else:
+            iva, ivb, la, lb, ivs, idiff = _pixel_params(a, b, has_inv, metric, sr2, ss2)
         PA[0, l] = a
         PA[1, l] = b
         PA[2, l] = iva
@@ -539,7 +576,26 @@ def _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
         PA[6, l] = ivs
         PA[7, l] = idiff
         dmin[l] = 0.0
-    if x0 + L <= width:
+    full = x0 + L <= width
+    if full and metric == METRIC_ML and not has_inv:
+        # the common case, unswitched: the same arithmetic as `_sample_costs`, bit for bit
+        a = PA[0]
+        b = PA[1]
+        iva = PA[2]
+        ivb = PA[3]
+        la = PA[4]
+        lb = PA[5]
+        for i in range(n):
+            row = frames[i, yy, x0:x0 + L]
+            yr = Y[i]
+            for l in range(L):
+                r = row[l] * scale
+                e1 = (r - a[l]) * (r - a[l]) * iva[l] + la[l]
+                e0 = (r - b[l]) * (r - b[l]) * ivb[l] + lb[l]
+                dmin[l] += min(e0, e1)
+                yr[l] = np.int32(_quantise(e0, e1, q_scale))
+        return nact
+    if full:
         for i in range(n):
             row = frames[i, yy, x0:x0 + L]
             for l in range(L):
@@ -678,7 +734,7 @@ def _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, nlanes, c_first, 
 
 
 @njit(cache=True)
-def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
+def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, ltab,
                masks, syn_col, col_bit, leader, leader_col, has_leader,
                cls_weight, cls_start, cls_pstart, dpos, dcol,
                ncols, use_band, min_d, max_d, stripe, out_col, out_dist, out_conf, out_stats):
@@ -729,7 +785,7 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, s
     for x0 in range(0, width, L):
         blocks += 1
         nact = _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2,
-                          q_scale, yy, x0, use_band, min_d, max_d, stripe, ncols, R, RI, PA,
+                          q_scale, ltab, yy, x0, use_band, min_d, max_d, stripe, ncols, R, RI, PA,
                           Y, dmin, active, lo, hi)
         # hard decision -> syndrome and column of h, lane-parallel
         for l in range(L):
@@ -842,7 +898,7 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, s
 
 
 @njit(cache=True, parallel=True)
-def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
+def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, ltab,
                masks, syn_col, col_bit, leader, leader_col, has_leader,
                cls_weight, cls_start, cls_pstart, dpos, dcol,
                ncols, use_band, min_d, max_d, stripe, out_col, out_dist, out_conf, out_stats):
@@ -865,15 +921,15 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, 
     """
     height = frames.shape[1]
     for yy in prange(height):
-        _lanes_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
+        _lanes_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, ltab,
                    masks, syn_col, col_bit, leader, leader_col, has_leader,
                    cls_weight, cls_start, cls_pstart, dpos, dcol,
                    ncols, use_band, min_d, max_d, stripe, out_col, out_dist, out_conf, out_stats)
 
 
 @njit(cache=True)
-def _band_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, masks_t,
-              ncols, min_d, max_d, stripe, out_col, out_dist, out_conf, out_stats):
+def _band_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, ltab,
+              masks_t, ncols, min_d, max_d, stripe, out_col, out_dist, out_conf, out_stats):
     """Row yy of `soft_band` (a plain function: keeps the parallel kernel small to compile)."""
     n, height, width = frames.shape
     L = LANES
@@ -894,7 +950,7 @@ def _band_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss
     n4 = n - n % 4
     for x0 in range(0, width, L):
         _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
-                   yy, x0, True, min_d, max_d, stripe, ncols, R, RI, PA, Y, dmin, active,
+                   ltab, yy, x0, True, min_d, max_d, stripe, ncols, R, RI, PA, Y, dmin, active,
                    lo, hi)
         for ln in range(L):
             xx = x0 + ln
@@ -961,8 +1017,8 @@ def _band_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss
 
 
 @njit(cache=True, parallel=True)
-def soft_band(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, masks_t,
-              ncols, min_d, max_d, stripe, out_col, out_dist, out_conf, out_stats):
+def soft_band(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, ltab,
+              masks_t, ncols, min_d, max_d, stripe, out_col, out_dist, out_conf, out_stats):
     """Exact top-3 soft decoding of any binary code within a disparity band, by scanning the
     band: cost(c) = C0 - sum_i (masks_t[i, c] & y_i) with C0 = sum_i max(y_i, 0) (the cost of
     the all-zero word; masks_t is 0 / -1), a loop over contiguous candidate columns, then a
@@ -970,7 +1026,7 @@ def soft_band(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q
     candidate evaluations."""
     height = frames.shape[1]
     for yy in prange(height):
-        _band_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
+        _band_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, ltab,
                   masks_t, ncols, min_d, max_d, stripe, out_col, out_dist, out_conf, out_stats)
 
 
@@ -1027,10 +1083,132 @@ def hard_lean(frames, inverse, has_inv, white, black, syn_col, info_bit, leader_
             out_dist[yy, xx, 2] = np.inf
 
 
+#: Empty slot of the 32-bit top-3 keys of `soft_band_fold` (larger than any uncapped key).
+NO_KEY32 = np.int32(0x7FFFFFFF)
+
+
 @njit(cache=True)
-def _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
-                   fold_b, fold_v, fold_sgn, fold_row, fold_usign, ncols, min_d, max_d, stripe,
-                   out_col, out_dist, out_conf, out_stats):
+def _band_lane_scan(Y, l, n, clo, chi, masks_t):
+    """Exact top-3 keys (64-bit, as `_write` takes them) of lane l over columns clo..chi by the
+    band-scan formula cost = C0 - sum_i (masks_t[i, c] & y_i) (`soft_band_fold`'s fallback)."""
+    c0 = np.int64(0)
+    for i in range(n):
+        c0 += max(np.int64(Y[i, l]), 0)
+    k1 = NO_KEY
+    k2 = NO_KEY
+    k3 = NO_KEY
+    for c in range(clo, chi + 1):
+        cost = c0
+        for i in range(n):
+            cost -= np.int64(masks_t[i, c]) & np.int64(Y[i, l])
+        key = (cost << IDX_BITS) | c
+        if key < k3:
+            k1, k2, k3 = _insert(key, k1, k2, k3)
+    return k1, k2, k3
+
+
+@njit(cache=True)
+def _key64(key32, s, cmin):
+    """64-bit key (cost << IDX_BITS | column) of a 32-bit key (cost << s | column - cmin)."""
+    if key32 == NO_KEY32:
+        return NO_KEY
+    return ((np.int64(key32) >> s) << IDX_BITS) | (cmin + (np.int64(key32) & ((1 << s) - 1)))
+
+
+@njit(cache=True, inline="always")
+def _key32(zv, wl, zcap, mult, rc):
+    """32-bit top-3 key of `soft_band_fold`: min(z, zcap) * mult | rc with z = zv + wl = 2 cost
+    (int32 throughout, so the lane loops stay 8 x int32 wide)."""
+    return np.int32(np.int32(min(np.int32(zv + wl), zcap) * mult) | rc)
+
+
+@njit(cache=True)
+def _top3_cols(Z, z0off, m, W, k1, k2, k3, lo, hi, cmin, c_first, c_last, zcap, mult, masked):
+    """Top-3 update of every lane with columns c_first..c_last: column c, lane l at
+    Z[z0off + c * m + l]; masked: lanes l with c outside [lo[l], hi[l]] skip column c."""
+    L = LANES
+    c = c_first
+    if masked:
+        while c + 1 <= c_last:
+            zo = z0off + c * m
+            z0 = Z[zo:zo + L]
+            z1 = Z[zo + m:zo + m + L]
+            rc = np.int32(c - cmin)
+            ci = np.int32(c)
+            ci1 = np.int32(c + 1)
+            for l in range(L):
+                wl = W[l]
+                t1 = k1[l]
+                t2 = k2[l]
+                t3 = k3[l]
+                key = _key32(z0[l], wl, zcap, mult, rc)
+                key = key if (ci >= lo[l]) & (ci <= hi[l]) else NO_KEY32
+                t3 = min(t3, max(t2, key))
+                t2 = min(t2, max(t1, key))
+                t1 = min(t1, key)
+                key = _key32(z1[l], wl, zcap, mult, rc + 1)
+                key = key if (ci1 >= lo[l]) & (ci1 <= hi[l]) else NO_KEY32
+                t3 = min(t3, max(t2, key))
+                t2 = min(t2, max(t1, key))
+                t1 = min(t1, key)
+                k1[l] = t1
+                k2[l] = t2
+                k3[l] = t3
+            c += 2
+    else:
+        while c + 3 <= c_last:
+            zo = z0off + c * m
+            z0 = Z[zo:zo + L]
+            z1 = Z[zo + m:zo + m + L]
+            z2 = Z[zo + 2 * m:zo + 2 * m + L]
+            z3 = Z[zo + 3 * m:zo + 3 * m + L]
+            rc = np.int32(c - cmin)
+            for l in range(L):
+                wl = W[l]
+                t1 = k1[l]
+                t2 = k2[l]
+                t3 = k3[l]
+                key = _key32(z0[l], wl, zcap, mult, rc)
+                t3 = min(t3, max(t2, key))
+                t2 = min(t2, max(t1, key))
+                t1 = min(t1, key)
+                key = _key32(z1[l], wl, zcap, mult, rc + 1)
+                t3 = min(t3, max(t2, key))
+                t2 = min(t2, max(t1, key))
+                t1 = min(t1, key)
+                key = _key32(z2[l], wl, zcap, mult, rc + 2)
+                t3 = min(t3, max(t2, key))
+                t2 = min(t2, max(t1, key))
+                t1 = min(t1, key)
+                key = _key32(z3[l], wl, zcap, mult, rc + 3)
+                t3 = min(t3, max(t2, key))
+                t2 = min(t2, max(t1, key))
+                t1 = min(t1, key)
+                k1[l] = t1
+                k2[l] = t2
+                k3[l] = t3
+            c += 4
+    while c <= c_last:
+        zo = z0off + c * m
+        z0 = Z[zo:zo + L]
+        rc = np.int32(c - cmin)
+        ci = np.int32(c)
+        for l in range(L):
+            key = _key32(z0[l], W[l], zcap, mult, rc)
+            key = key if (ci >= lo[l]) & (ci <= hi[l]) else NO_KEY32
+            t1 = k1[l]
+            t2 = k2[l]
+            k3[l] = min(k3[l], max(t2, key))
+            k2[l] = min(t2, max(t1, key))
+            k1[l] = min(t1, key)
+        c += 1
+
+
+
+@njit(cache=True)
+def _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, ltab,
+                   fold_b, fold_v, fold_sgn, fold_row, fold_usign, masks_t, ncols, min_d, max_d,
+                   stripe, out_col, out_dist, out_conf, out_stats):
     """Row yy of `soft_band_fold` (a plain function: keeps the parallel kernel small to compile)."""
     n, height, width = frames.shape
     L = LANES
@@ -1046,15 +1224,16 @@ def _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr
     W = np.zeros(L, np.int32)
     bsz = 1 << fold_b
     nv = 1 << fold_v
-    Z = np.zeros(bsz * L, np.int32)
-    k1 = np.empty(L, np.int64)
-    k2 = np.empty(L, np.int64)
-    k3 = np.empty(L, np.int64)
+    Z = np.zeros(bsz * L + 2 * L, np.int32)
+    k1 = np.empty(L, np.int32)
+    k2 = np.empty(L, np.int32)
+    k3 = np.empty(L, np.int32)
     pixels = 0
     evaluated = 0
+    wide = 0
     for x0 in range(0, width, L):
         nact = _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
-                          yy, x0, True, min_d, max_d, stripe, ncols, R, RI, PA, Y, dmin, active, lo, hi)
+                          ltab, yy, x0, True, min_d, max_d, stripe, ncols, R, RI, PA, Y, dmin, active, lo, hi)
         if nact == 0:
             for l in range(L):
                 if x0 + l < width:
@@ -1073,11 +1252,18 @@ def _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr
             if x0 + l >= width:
                 lo[l] = _FAR_COL
                 hi[l] = _FAR_COL
+        # 32-bit keys (min(cost, cap) << s) | (c - cmin), s = bits of c - cmin; a lane whose
+        # top-3 holds a capped cost is redone exactly with 64-bit keys (`_band_lane_scan`)
+        s = 2
+        while (1 << s) <= cmax - cmin:
+            s += 1
+        zcap = np.int32((1 << (32 - s)) - 2)  # cap of z = 2 cost: cost <= 2**(31 - s) - 1
+        mult = np.int32(1 << (s - 1))  # key = min(z, zcap) * mult | (c - cmin)
         for l in range(L):
             W[l] = 0
-            k1[l] = NO_KEY
-            k2[l] = NO_KEY
-            k3[l] = NO_KEY
+            k1[l] = NO_KEY32
+            k2[l] = NO_KEY32
+            k3[l] = NO_KEY32
         for i in range(n):
             yr = Y[i]
             y0 = YY[0, i]
@@ -1088,75 +1274,85 @@ def _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr
                 y0[l] = yv
                 y1[l] = -yv
         for u in range(cmin >> fold_b, (cmax >> fold_b) + 1):
+            cb = u << fold_b
+            c_first = max(cmin, cb)
+            c_last = min(cmax, cb + bsz - 1)
+            # lanes whose band meets the block: q8 .. q8 + m - 1 (rounded out to multiples of
+            # 8); Z holds just these, column c, lane l at Z[L + (c - cb) * m + l - q8] (the
+            # margins of L entries keep the top-3 reads of other lanes in bounds: they are
+            # outside the band, masked)
+            q = 0
+            while hi[q] < c_first:
+                q += 1
+            p = q
+            while p < L and lo[p] <= c_last:
+                p += 1
+            q8 = q & ~7
+            m = min(L, (p + 7) & ~7) - q8
+            zb = Z[L:L + bsz * m]
             # fold: Z[(a, v), l] = sum over positions i with row a of +-y_i (sign of <g_i, col>
             # on the v and u bits)
-            for j in range(bsz * L):
-                Z[j] = 0
+            for j in range(bsz * m):
+                zb[j] = 0
             for i in range(n):
                 zr = fold_row[i] * nv
                 su = fold_usign[u, i]
                 for v in range(nv):
-                    zo = (zr + v) * L
-                    zrow = Z[zo:zo + L]
-                    src = YY[fold_sgn[i, v] ^ su, i]
-                    for l in range(L):
+                    zo = (zr + v) * m
+                    zrow = zb[zo:zo + m]
+                    src = YY[fold_sgn[i, v] ^ su, i, q8:q8 + m]
+                    for l in range(m):
                         zrow[l] += src[l]
             # Walsh-Hadamard transform over the row bits a: Z[(a, v), l] = corr(column)
-            h = nv * L
-            while h < bsz * L:
-                for r0 in range(0, bsz * L, 2 * h):
-                    za = Z[r0:r0 + h]
-                    zb = Z[r0 + h:r0 + 2 * h]
+            h = nv * m
+            while h < bsz * m:
+                for r0 in range(0, bsz * m, 2 * h):
+                    za = zb[r0:r0 + h]
+                    zz = zb[r0 + h:r0 + 2 * h]
                     for j in range(h):
                         a = za[j]
-                        b = zb[j]
+                        b = zz[j]
                         za[j] = a + b
-                        zb[j] = a - b
+                        zz[j] = a - b
                 h *= 2
-            # top-3 keys over the lanes whose band holds column c: lanes q .. p-1
-            cb = u << fold_b
-            q = 0
-            p = 0
-            for c in range(max(cmin, cb), min(cmax, cb + bsz - 1) + 1):
-                while q < L and hi[q] < c:
-                    q += 1
-                while p < L and lo[p] <= c:
-                    p += 1
-                if p <= q:
-                    continue
-                zo = (c - cb) * L
-                zs = Z[zo + q:zo + p]
-                ws = W[q:p]
-                a1 = k1[q:p]
-                a2 = k2[q:p]
-                a3 = k3[q:p]
-                cc = np.int64(c)
-                for j in range(p - q):
-                    # cost = (W + corr) / 2 (W + corr is even), key = cost << IDX_BITS | c
-                    key = (np.int64(np.int32(zs[j] + ws[j])) << (IDX_BITS - 1)) | cc
-                    t = a1[j]
-                    a1[j] = min(t, key)
-                    key = max(t, key)
-                    t = a2[j]
-                    a2[j] = min(t, key)
-                    key = max(t, key)
-                    a3[j] = min(a3[j], key)
+            # top-3 keys, columns inside every lane's band (lo[L-1] <= c <= hi[0]: lo, hi are
+            # non-decreasing) unmasked, the others with the lanes outside their band masked out
+            f_lo = max(c_first, lo[L - 1])
+            f_hi = min(c_last, hi[0])
+            if f_lo > f_hi:
+                f_lo = c_last + 1
+                f_hi = c_last
+            zo = L - q8 - cb * m
+            _top3_cols(Z, zo, m, W, k1, k2, k3, lo, hi, cmin, c_first, f_lo - 1, zcap, mult, True)
+            _top3_cols(Z, zo, m, W, k1, k2, k3, lo, hi, cmin, f_lo, f_hi, zcap, mult, False)
+            _top3_cols(Z, zo, m, W, k1, k2, k3, lo, hi, cmin, f_hi + 1, c_last, zcap, mult, True)
+        cost_cap = (1 << (31 - s)) - 1
         for l in range(L):
             xx = x0 + l
             if xx >= width:
                 break
             if not active[l]:
                 _write_none(out_col, out_dist, out_conf, yy, xx)
+                continue
+            nb = hi[l] - lo[l] + 1
+            last = k3[l] if nb >= 3 else (k2[l] if nb == 2 else k1[l])
+            if (last >> s) < cost_cap:
+                e1 = _key64(k1[l], s, cmin)
+                e2 = _key64(k2[l], s, cmin) if nb >= 2 else NO_KEY
+                e3 = _key64(k3[l], s, cmin) if nb >= 3 else NO_KEY
             else:
-                _write(out_col, out_dist, out_conf, yy, xx, k1[l], k2[l], k3[l], dmin[l], q_scale)
+                wide += 1
+                e1, e2, e3 = _band_lane_scan(Y, l, n, lo[l], hi[l], masks_t)
+            _write(out_col, out_dist, out_conf, yy, xx, e1, e2, e3, dmin[l], q_scale)
     out_stats[yy, 0] = pixels
     out_stats[yy, 1] = evaluated
+    out_stats[yy, 2] = wide
 
 
 @njit(cache=True, parallel=True)
-def soft_band_fold(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
-                   fold_b, fold_v, fold_sgn, fold_row, fold_usign, ncols, min_d, max_d, stripe,
-                   out_col, out_dist, out_conf, out_stats):
+def soft_band_fold(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, ltab,
+                   fold_b, fold_v, fold_sgn, fold_row, fold_usign, masks_t, ncols, min_d, max_d,
+                   stripe, out_col, out_dist, out_conf, out_stats):
     """Exact top-3 soft decoding of a column-linear binary code within a disparity band, LANES
     pixels of a row at a time, by folded Walsh-Hadamard transforms of 2**fold_b-column blocks.
 
@@ -1170,10 +1366,17 @@ def soft_band_fold(frames, inverse, has_inv, white, black, scale, metric, sr2, s
     cover the union of the LANES pixels' bands.  The top-3 update (keys (cost << IDX_BITS) |
     column, ties to the lower column) runs per column over exactly the lanes whose band [lo, hi]
     holds it (lo, hi are non-decreasing in x, so these lanes form an interval).
-    Same outputs as `soft_band`; out_stats (H, 2): decoded pixels, candidate evaluations.
+    Keys are 32-bit: (min(cost, cap) << s) | (column - cmin), s the bits of the block's column
+    span, cmin its first column, cap = 2**(31 - s) - 1 (so two int32 min/max per step, twice the
+    SIMD width of 64-bit keys); a lane whose top-3 (or fewer, with fewer candidates) holds a
+    capped cost is redone with 64-bit keys by the band-scan formula (`_band_lane_scan`) from
+    masks_t (`tables` masks_t), so the result is exact and bit-identical in every case.  Per
+    column block the transform covers only the lanes whose band meets it (rounded out to 8).
+    Same outputs as `soft_band`; out_stats (H, 3): decoded pixels, candidate evaluations,
+    pixels redone with 64-bit keys.
     """
     height = frames.shape[1]
     for yy in prange(height):
-        _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
-                       fold_b, fold_v, fold_sgn, fold_row, fold_usign, ncols, min_d, max_d, stripe,
-                       out_col, out_dist, out_conf, out_stats)
+        _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, ltab,
+                       fold_b, fold_v, fold_sgn, fold_row, fold_usign, masks_t, ncols, min_d, max_d,
+                       stripe, out_col, out_dist, out_conf, out_stats)

@@ -315,23 +315,24 @@ def _straddle_sum(vcol, c, yy, xx, radius, tol, nlo_is_p, nhi_is_p):
     """da + db of the middle voter pair of pixel (yy, xx) when one side holds half the voters:
     the extreme values next to that side (see `_support`)."""
     height, width = vcol.shape
-    maxlo = -(1 << 30)
-    minmid = 1 << 30
-    maxmid = -(1 << 30)
-    minhi = 1 << 30
+    big = 1 << 30
+    maxlo = -big
+    minmid = big
+    maxmid = -big
+    minhi = big
+    # branch-free (selects): non-voters have d <= -2**30 <= maxlo, so they change nothing; the
+    # pixel itself is masked out
     for y2 in range(max(0, yy - radius), min(height, yy + radius + 1)):
         for x2 in range(max(0, xx - radius), min(width, xx + radius + 1)):
-            v = vcol[y2, x2]
-            if v == _NO_VOTE or (y2 == yy and x2 == xx):
-                continue
-            d = v - c
-            if d < -tol:
-                maxlo = max(maxlo, d)
-            elif d > tol:
-                minhi = min(minhi, d)
-            else:
-                minmid = min(minmid, d)
-                maxmid = max(maxmid, d)
+            d = np.int64(vcol[y2, x2]) - c
+            other = (y2 != yy) | (x2 != xx)
+            lo = d < -tol
+            hi = d > tol
+            mid = other & ~lo & ~hi
+            maxlo = max(maxlo, d if lo & other else -big)
+            minhi = min(minhi, d if hi & other else big)
+            minmid = min(minmid, d if mid else big)
+            maxmid = max(maxmid, d if mid else -big)
     if nlo_is_p and nhi_is_p:
         return maxlo + minhi
     if nlo_is_p:
@@ -362,9 +363,19 @@ def _support(col, conf, eligible, t_vote, radius, min_votes, tol, vcol, out):
     cmask = (1 << _LO_SHIFT) - 1
     ntol = np.int32(-tol)
     ptol = np.int32(tol)
+    one = np.int32(1)
+    lo_one = np.int32(1 << _LO_SHIFT)
+    hi_one = np.int32(1 << _HI_SHIFT)
+    zero = np.int32(0)
     for yy in prange(height):
         acc = np.zeros(width, np.int32)
+        lt = np.empty(width, np.int32)
+        ht = np.empty(width, np.int32)
         c = col[yy]
+        for xx in range(width):
+            # v - c < -tol  <=>  v < c - tol (no overflow: |columns| < 2**16, _NO_VOTE = -2**30)
+            lt[xx] = c[xx] + ntol
+            ht[xx] = c[xx] + ptol
         for y2 in range(max(0, yy - radius), min(height, yy + radius + 1)):
             vr = vcol[y2]
             for dx in range(-radius, radius + 1):
@@ -374,13 +385,15 @@ def _support(col, conf, eligible, t_vote, radius, min_votes, tol, vcol, out):
                 x_lo = max(0, -dx)
                 x_hi = min(width, width - dx)
                 vs = vr[x_lo + dx:x_hi + dx]
-                cs = c[x_lo:x_hi]
+                ls = lt[x_lo:x_hi]
+                hs = ht[x_lo:x_hi]
                 ac = acc[x_lo:x_hi]
                 for j in range(x_hi - x_lo):
                     v = vs[j]
-                    d = np.int32(v - cs[j])
-                    ac[j] += (np.int32(v != _NO_VOTE) + (np.int32(d < ntol) << _LO_SHIFT)
-                              + (np.int32(d > ptol) << _HI_SHIFT))
+                    a = ac[j] + (one if v != _NO_VOTE else zero)
+                    a += lo_one if v < ls[j] else zero
+                    a += hi_one if v > hs[j] else zero
+                    ac[j] = np.int32(a)
         ny = min(height, yy + radius + 1) - max(0, yy - radius)
         for xx in range(width):
             a = acc[xx]
