@@ -241,3 +241,10 @@ def test_event_pipeline_counts_exactly_and_rejects_frames():
         pipe.process(Stack(0, tuple(dataclasses.replace(_frame(np.zeros((120, 160), np.uint8), j, 0),
                                                         projector_frame=int(pid))
                                     for j, pid in enumerate(pipe.schedule)), 0))
+
+
+def test_columns_pipeline_warm_up_compiles_before_capture():
+    service, status, _ = _run_cli_service("sim-dlp", stacks=1)
+    assert status["warm_up_s"] > 0.0  # the service decoded a synthetic stack before starting the sensor
+    pipeline = make_pipeline(load_profile("sim-dlp"))
+    assert pipeline.warm_up() < 5.0  # kernels are compiled once per process: a second warm-up is cheap

@@ -126,6 +126,10 @@ def run(args: argparse.Namespace) -> int:
           f"{service.sensor.info.frames_per_stack} frames/stack), sensor {service.sensor.info.name}"
           + ("" if args.no_zenoh else f", zenoh {service.profile.zenoh.key('*')}")
           + (f", recording {args.record}" if args.record else ""), flush=True)
+    warm_up = getattr(service.pipeline, "warm_up", None)
+    if warm_up is not None and not args.quiet:
+        print("compiling / loading decoder kernels (about half a minute on the very first run) ...", flush=True)
+        print(f"decoder ready in {warm_up():.1f} s", flush=True)
     with stop_on_signals(service.stop) as received:
         status = service.run(stacks=args.stacks, seconds=args.seconds)
     for line in summary_lines(status, console):

@@ -67,6 +67,7 @@ class Service:
         self.recorder = recorder
         self.pipeline_factory = pipeline_factory
         self.pipeline = pipeline_factory(profile)
+        self.warm_up_s = 0.0
         schedule = self.pipeline.schedule
         if not np.array_equal(np.asarray(schedule), sensor.info.schedule):
             raise ValueError(
@@ -221,6 +222,7 @@ class Service:
             "profile": self.profile.name,
             "sensor": self.sensor.info.name,
             "uptime_s": round(time.monotonic() - self._started, 3) if self._started else 0.0,
+            "warm_up_s": round(self.warm_up_s, 3),
             "fps": round(fps, 3),
             "latency_ms_p50": round(float(np.median(lat)) * 1e3, 3) if lat.size else None,
             "latency_ms_p99": round(float(np.percentile(lat, 99)) * 1e3, 3) if lat.size else None,
@@ -274,6 +276,9 @@ class Service:
         self._started = time.monotonic()
         deadline = None if seconds is None else self._started + seconds
         period = float(self.profile.zenoh.status_period_s)
+        warm_up = getattr(self.pipeline, "warm_up", None)
+        if warm_up is not None:  # compile the decoder before frames arrive: no stale stacks at start
+            self.warm_up_s = warm_up()
         self.sensor.start()
         try:
             self._threads = [
