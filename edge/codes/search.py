@@ -35,6 +35,7 @@ import numpy as np
 from numba import njit
 
 from .code import Code, int_to_digits
+from .gfq import poly2_mul
 from .linear import from_generator
 from .table import griesmer_bound
 
@@ -285,14 +286,6 @@ def search_parity_columns(n: int, k: int, *, seed: int = 0, iterations: int = 20
 # exhaustive search over cyclic codes (shortened or extended)
 
 
-def _clmul(a: int, b: int) -> int:
-    out = 0
-    while b:
-        if b & 1:
-            out ^= a
-        a <<= 1
-        b >>= 1
-    return out
 
 
 @functools.lru_cache(maxsize=64)
@@ -317,7 +310,7 @@ def _divisors_of_degree(factors: tuple[int, ...], degree: int, limit: int) -> li
             return
         if i == len(factors) or left < 0:
             return
-        walk(i + 1, _clmul(poly, factors[i]), left - degs[i])
+        walk(i + 1, poly2_mul(poly, factors[i]), left - degs[i])
         walk(i + 1, poly, left)
 
     walk(0, 1, degree)
