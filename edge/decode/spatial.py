@@ -36,16 +36,28 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from .kernels import _sort_small
+
+
+@njit(cache=True, inline="always")
+def _nearest_marked(marked, prev_out, next_out):
+    """For every x of a row: the nearest marked x strictly left (prev_out) and right (next_out), -1 if none."""
+    width = marked.size
+    last = -1
+    for xx in range(width):
+        prev_out[xx] = last
+        if marked[xx]:
+            last = xx
+    last = -1
+    for xx in range(width - 1, -1, -1):
+        next_out[xx] = last
+        if marked[xx]:
+            last = xx
+
 
 @njit(cache=True, inline="always")
 def _median_sorted(buf, m):
-    for i in range(1, m):
-        t = buf[i]
-        j = i - 1
-        while j >= 0 and buf[j] > t:
-            buf[j + 1] = buf[j]
-            j -= 1
-        buf[j + 1] = t
+    _sort_small(buf, m)
     if m % 2 == 1:
         return buf[m // 2]
     return (buf[m // 2 - 1] + buf[m // 2]) // 2
@@ -53,13 +65,7 @@ def _median_sorted(buf, m):
 
 @njit(cache=True, inline="always")
 def _median_float(buf, m):
-    for i in range(1, m):
-        t = buf[i]
-        j = i - 1
-        while j >= 0 and buf[j] > t:
-            buf[j + 1] = buf[j]
-            j -= 1
-        buf[j + 1] = t
+    _sort_small(buf, m)
     if m % 2 == 1:
         return buf[m // 2]
     return 0.5 * (buf[m // 2 - 1] + buf[m // 2])
@@ -82,16 +88,7 @@ def _order_prior(cand, conf, ok, t_high, t_low, max_gap, max_slope, tol, stripe,
         next_high = np.full(width, -1, np.int64)
         for xx in range(width):
             high[xx] = ok[yy, xx] and conf[yy, xx] >= t_high and cand[yy, xx, 0] >= 0
-        last = -1
-        for xx in range(width):
-            prev_high[xx] = last
-            if high[xx]:
-                last = xx
-        last = -1
-        for xx in range(width - 1, -1, -1):
-            next_high[xx] = last
-            if high[xx]:
-                last = xx
+        _nearest_marked(high, prev_high, next_high)
         # anchors: high-confidence pixels that agree with a neighbouring high-confidence pixel
         for xx in range(width):
             if not high[xx]:
@@ -104,16 +101,7 @@ def _order_prior(cand, conf, ok, t_high, t_low, max_gap, max_slope, tol, stripe,
                     break
         left_x = np.full(width, -1, np.int64)
         right_x = np.full(width, -1, np.int64)
-        last = -1
-        for xx in range(width):
-            left_x[xx] = last
-            if anchor[xx]:
-                last = xx
-        last = -1
-        for xx in range(width - 1, -1, -1):
-            right_x[xx] = last
-            if anchor[xx]:
-                last = xx
+        _nearest_marked(anchor, left_x, right_x)
         for xx in range(width):
             c0 = cand[yy, xx, 0]
             out_col[yy, xx] = c0
