@@ -59,6 +59,17 @@ def _window_ok(t: np.ndarray, lo: int, hi: int, w: int) -> bool:
 
 
 @njit(cache=True)
+def _reverse(a: np.ndarray, lo: int, hi: int) -> None:
+    """Reverse a[lo..hi] (inclusive) in place."""
+    while lo < hi:
+        x = a[lo]
+        a[lo] = a[hi]
+        a[hi] = x
+        lo += 1
+        hi -= 1
+
+
+@njit(cache=True)
 def _search_walk(k: int, w: int, seed: int, max_steps: int) -> np.ndarray:
     """Randomised Posa-rotation search for a Hamiltonian path of the k-cube whose transitions are
     distinct over every window of ``w`` consecutive steps.
@@ -135,22 +146,8 @@ def _search_walk(k: int, w: int, seed: int, max_steps: int) -> np.ndarray:
         if not _window_ok(tmp, 0, hi - lo, w):
             continue
         # apply: reverse path[i+1..length-1] and t[i+1..length-2], set t[i] = b
-        a0 = i + 1
-        a1 = length - 1
-        while a0 < a1:
-            x = path[a0]
-            path[a0] = path[a1]
-            path[a1] = x
-            a0 += 1
-            a1 -= 1
-        a0 = i + 1
-        a1 = length - 2
-        while a0 < a1:
-            x = t[a0]
-            t[a0] = t[a1]
-            t[a1] = x
-            a0 += 1
-            a1 -= 1
+        _reverse(path, i + 1, length - 1)
+        _reverse(t, i + 1, length - 2)
         t[i] = b
         for a in range(i + 1, length):
             pos[path[a]] = a
