@@ -138,8 +138,12 @@ def test_qary_gray_neighbours_differ_in_one_digit():
     steps = np.abs(np.diff(d, axis=0))
     assert np.all((steps != 0).sum(axis=1) == 1) and steps.max() == 1
     assert len({tuple(r) for r in d}) == 81
-    for name, w in [("ternary-golay-12-6", 6), ("rs8-7-3", 5), ("nary3-6", 1)]:
-        assert get_code(name).neighbour_distances().max() <= 12
+    # q-ary Gray message order: neighbouring columns differ in one message digit, so their
+    # codewords are exactly d_min apart (a linear code's minimum-weight difference).
+    for name, d in [("ternary-golay-12-6", 6), ("rs8-7-3", 5), ("nary3-6", 1)]:
+        code = get_code(name)
+        assert code.d_min == d
+        assert np.all(code.neighbour_distances() == d), name
 
 
 @pytest.mark.parametrize("name,d", [("ecc-15-10", 4), ("ecc-22-10", 8), ("ecc-31-10", 12), ("gray-10", 1)])

@@ -161,10 +161,22 @@ def test_depth_invalid_cases_and_stripe():
         column_to_depth_mm(np.zeros(4, np.int32), G())
 
 
-def test_depth_is_deterministic():
+def test_depth_matches_formula_on_random_columns_and_stripes():
+    # Independent float64 evaluation of Z = f * b / (x - (col + 0.5) * stripe + 0.5 ... ) per
+    # docs/architecture.md: the centre of codeword col is projector column (col + 0.5) * stripe - 0.5.
     rng = np.random.default_rng(1)
     col = rng.integers(-1, 1024, size=(48, 64)).astype(np.int32)
-    assert np.array_equal(column_to_depth_mm(col, G()), column_to_depth_mm(col.copy(), G()))
+    x = np.arange(64, dtype=np.float64)[None, :]
+    for stripe in (1, 2, 4):
+        centre = (col + 0.5) * stripe - 0.5
+        d = x - centre
+        with np.errstate(divide="ignore", invalid="ignore"):
+            expected = np.rint(560.0 * 0.08 * 1000.0 / (d + 192.0))
+        ok = (col >= 0) & (d + 192.0 > 0) & (expected <= 65535) & (expected >= 1)
+        depth = column_to_depth_mm(col, G(), stripe=stripe)
+        assert np.array_equal(depth[ok], expected[ok].astype(np.uint16)), stripe
+        assert np.all(depth[~ok] == 0), stripe
+        assert ok.sum() > 100
 
 
 def test_confidence_to_u8():
