@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pytest
 
-dai = pytest.importorskip("depthai")
+import depthai as dai  # a hard dependency: a broken install must fail, not skip
 
 from edge.profiles import apply_update, load_profile  # noqa: E402
 from edge.runtime.assembly import StackAssembler  # noqa: E402

@@ -14,7 +14,7 @@ import pytest
 
 from _service_helpers import TEST_PROFILE, NumpyPipeline, load_test_profile
 
-zenoh = pytest.importorskip("zenoh")
+import zenoh  # a hard dependency: a broken install must fail, not skip
 
 
 def free_port() -> int:
