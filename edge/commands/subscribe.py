@@ -1,6 +1,6 @@
 """``edge subscribe``: receive depth from a running service, print rates and latency, save a PNG.
 
-    edge subscribe [--device sim-dlp] [--connect tcp/127.0.0.1:7447] [--png depth.png]
+    edge subscribe [--device sim-dlp] [--connect tcp/127.0.0.1:7451] [--png depth.png]
                    [--count N] [--seconds S]
 
 Prints one line per second (depth maps/s, median and max latency in ms, dropped, last status
@@ -84,7 +84,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--device", default=DEFAULT_PROFILE, help="device name in the key space (default %(default)s)")
     parser.add_argument("--prefix", default="sl", help="key prefix (default %(default)s)")
     parser.add_argument("--connect", action="append", default=None, metavar="ENDPOINT",
-                        help="zenoh endpoint to connect to (repeatable; default tcp/127.0.0.1:7447)")
+                        help="zenoh endpoint to connect to (repeatable; default tcp/127.0.0.1:7451)")
     parser.add_argument("--png", default=None, help="write the last depth map colour-mapped to this PNG")
     parser.add_argument("--count", type=int, default=None, help="stop after N depth maps")
     parser.add_argument("--seconds", type=float, default=10.0, help="stop after S seconds (default %(default)s)")
@@ -93,5 +93,5 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _defaults(args: argparse.Namespace) -> argparse.Namespace:
     if not args.connect:
-        args.connect = ["tcp/127.0.0.1:7447"]
+        args.connect = ["tcp/127.0.0.1:7451"]
     return args

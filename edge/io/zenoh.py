@@ -27,7 +27,7 @@ Header (the zenoh *attachment* of every depth and confidence sample): UTF-8 JSON
 Five-line subscriber (see also `DepthSubscriber`)::
 
     import json, zenoh, numpy as np
-    conf = zenoh.Config(); conf.insert_json5("connect/endpoints", '["tcp/127.0.0.1:7447"]')
+    conf = zenoh.Config(); conf.insert_json5("connect/endpoints", '["tcp/127.0.0.1:7451"]')
     s = zenoh.open(conf)
     def on(sample): h = json.loads(sample.attachment.to_bytes()); d = np.frombuffer(sample.payload.to_bytes(), "<u2").reshape(h["height"], h["width"]); print(h["sequence"], d.max())
     sub = s.declare_subscriber("sl/sim-dlp/depth", on)
@@ -326,13 +326,13 @@ def is_alive(session: zenoh.Session, device: str, *, prefix: str = "sl", timeout
 class DepthSubscriber:
     """Client side: receive decoded depth (+ confidence) and status of one device.
 
-    ``DepthSubscriber("sim-dlp", connect=["tcp/127.0.0.1:7447"])`` opens a peer session with
+    ``DepthSubscriber("sim-dlp", connect=["tcp/127.0.0.1:7451"])`` opens a peer session with
     multicast scouting off (or uses ``session``). `receive` returns `DepthSample` objects in
     arrival order; at most ``max_queue`` are buffered (older ones are dropped and counted in
     ``dropped``). ``status`` holds the latest status dict.
     """
 
-    def __init__(self, device: str, *, connect: Iterable[str] = ("tcp/127.0.0.1:7447",), prefix: str = "sl",
+    def __init__(self, device: str, *, connect: Iterable[str] = ("tcp/127.0.0.1:7451",), prefix: str = "sl",
                  session: zenoh.Session | None = None, max_queue: int = 8):
         self.device, self.prefix = device, prefix
         self._own_session = session is None
