@@ -58,6 +58,8 @@ __all__ = [
     "camera_info_message",
     "point_cloud2_message",
     "domain_id_from_env",
+    "frame_ids",
+    "OPTICAL_ROTATION",
 ]
 
 #: Fields of every message edge publishes and of the types they reference, in declaration order
@@ -122,6 +124,20 @@ def ros_name(name: str) -> str:
     if not out:
         raise ValueError("expected a non-empty name for a ROS node / topic")
     return "_" + out if out[0].isdigit() else out
+
+
+#: Rotation (x, y, z, w) of a REP 103 optical frame (x right, y down, z forward) in its body frame
+#: (x forward, y left, z up).
+OPTICAL_ROTATION = (-0.5, 0.5, -0.5, 0.5)
+
+
+def frame_ids(device: str) -> dict[str, str]:
+    """REP 103 / 105 frame ids of one device: ``base`` ``<name>_link`` (body: x forward, y left,
+    z up), ``optical`` ``<name>_optical_frame`` (the camera: depth, confidence, points,
+    calibration) and ``projector`` ``<name>_projector_optical_frame`` (the projector, or the
+    right camera of a stereo profile: the optical frame moved by +baseline_m along x)."""
+    n = ros_name(device)
+    return {"base": f"{n}_link", "optical": f"{n}_optical_frame", "projector": f"{n}_projector_optical_frame"}
 
 
 def dds_type_name(ros_type: str) -> str:

@@ -188,6 +188,8 @@ class Service:
                 break
 
     def _deliver(self, result: DepthResult) -> None:
+        if result.geometry is None:  # sinks back-project with the geometry that made this depth map
+            result = dataclasses.replace(result, geometry=getattr(self.pipeline, "geometry", self.profile.geometry))
         if self.recorder is not None:
             for frame in result.extra_frames:
                 self.recorder.on_frame(frame)
