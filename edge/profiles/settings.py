@@ -72,6 +72,12 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     publish = true                        # live: sl/<device>/points, ROS PointCloud2, Foxglove
     record = true                         # MCAP: /<device>/points (foxglove.PointCloud)
 
+    [oak]                                 # OAK-D Pro backend (edge.sensors.oak); live-settable
+    dot_intensity = 0.8                   # IR dot projector on its source-code slots, 0..1
+    flood_intensity = 0.0                 # IR flood LED on WHITE frames, 0..1
+    lead_frames = 2                       # emitter command this many frames ahead (latency)
+    emitter_control = "script"            # script (on-device Script node per frame) | host
+
     [ros]                                 # ROS 2 over rmw_zenoh (edge.runtime.ros_sink)
     enabled = false                       # or `edge run --ros`; domain from ROS_DOMAIN_ID (default 0)
     router = "tcp/localhost:7447"         # the rmw_zenohd router to connect to
@@ -108,6 +114,7 @@ __all__ = [
     "SimSettings",
     "PointsSettings",
     "RosSettings",
+    "OakSettings",
     "build_profile",
     "profile_to_dict",
     "DECODER_METHODS",
@@ -239,6 +246,14 @@ class PointsSettings:
 
 
 @dataclass(frozen=True)
+class OakSettings:
+    dot_intensity: float = _f(0.8, lo=0.0, hi=1.0)
+    flood_intensity: float = _f(0.0, lo=0.0, hi=1.0)
+    lead_frames: int = _f(2, lo=0, hi=64)
+    emitter_control: str = _f("script", choices=("script", "host"))
+
+
+@dataclass(frozen=True)
 class RosSettings:
     enabled: bool = _f(False)
     router: str = _f("tcp/localhost:7447", pattern=_ENDPOINT)
@@ -275,6 +290,7 @@ class Profile:
     sim: SimSettings = _f(SimSettings())
     points: PointsSettings = _f(PointsSettings())
     ros: RosSettings = _f(RosSettings())
+    oak: OakSettings = _f(OakSettings())
     source: str = field(default="<dict>", compare=False, metadata={"internal": True})
 
 
