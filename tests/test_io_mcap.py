@@ -104,7 +104,9 @@ def test_file_opens_with_mcap_summary_and_foxglove_schemas(recording, profile):
         dev = profile.zenoh.device
         assert {f"/{dev}/raw", f"/{dev}/depth", f"/{dev}/confidence", f"/{dev}/calibration",
                 f"/{dev}/stack"} <= topics
-        assert summary.statistics.message_count == 1 + N_STACKS * (2 * PER_STACK + 4)
+        # start: calibration + frame tree; per stack: raw + raw_info per frame, stack, output_info, depth,
+        # confidence and the calibration of that depth map
+        assert summary.statistics.message_count == 2 + N_STACKS * (2 * PER_STACK + 5)
         assert all(c.compression == "zstd" for c in summary.chunk_indexes)
         assert len(summary.chunk_indexes) > 1
         metadata = {m.name for m in reader.iter_metadata()}
@@ -211,7 +213,7 @@ def test_recover_file_cut_mid_chunk(tmp_path, recording):
     assert all(np.array_equal(f.image, _image(f.sequence)) for f in frames)
     # a complete input is copied whole
     full = recover(recording, tmp_path / "copy.mcap")
-    assert full.complete_input and full.messages == 1 + N_STACKS * (2 * PER_STACK + 4)
+    assert full.complete_input and full.messages == 2 + N_STACKS * (2 * PER_STACK + 5)
     with pytest.raises(NotMcapError):
         recover(_junk(tmp_path), tmp_path / "x.mcap")
 

@@ -43,7 +43,7 @@ def test_default_profile_is_sim_dlp_with_the_design_card_settings():
     assert p.code.name == "ecc-22-10" and p.decoder.method == "soft"
     assert p.sensor.backend == "sim"
     assert p.zenoh.mode == "peer" and p.zenoh.multicast_scouting is False
-    assert p.zenoh.listen == ("tcp/127.0.0.1:7447",)
+    assert p.zenoh.listen == ("tcp/127.0.0.1:7451",)
     assert p.geometry.doffs == p.geometry.cx_projector - p.geometry.cx_camera
 
 
@@ -80,8 +80,8 @@ def _with(tmp_path: Path, old: str, new: str) -> Path:
         ("min_disparity = -176", "min_disparity = -400", "decoder.min_disparity", "min_disparity + doffs > 0"),
         ("width = 1024", "width = 2048", "projector.width", "expected <= 1024 columns"),
         ("exposure_us = 8000.0", "exposure_us = 9000.0", "camera.exposure_us", "frame period"),
-        ('listen = ["tcp/127.0.0.1:7447"]', 'listen = ["127.0.0.1:7447"]', "zenoh.listen[0]", "matching"),
-        ('listen = ["tcp/127.0.0.1:7447"]', 'listen = "tcp/127.0.0.1:7447"', "zenoh.listen", "array of strings"),
+        ('listen = ["tcp/127.0.0.1:7451"]', 'listen = ["127.0.0.1:7451"]', "zenoh.listen[0]", "matching"),
+        ('listen = ["tcp/127.0.0.1:7451"]', 'listen = "tcp/127.0.0.1:7451"', "zenoh.listen", "array of strings"),
         ("multicast_scouting = false", "multicast_scouting = 0", "zenoh.multicast_scouting", "true or false"),
         ('mode = "peer"', 'mode = "client"', "zenoh.connect", "client mode"),
         ('compression = "zstd"', 'compression = "gzip"', "recording.compression", "expected one of"),

@@ -21,6 +21,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--out", metavar="FILE", help="where --recover writes (default FILE.recovered.mcap)")
     p.add_argument("--publish", action="store_true", help="republish the decoded depth over zenoh")
     p.add_argument("--listen", action="append", metavar="ENDPOINT", help="zenoh listen endpoint(s) for --publish")
+    p.add_argument("--ply", metavar="DIR",
+                   help="write the point cloud of every re-decoded depth map to DIR/<device>_<stack>.ply "
+                        "(every valid pixel, metres, camera optical frame, grey = confidence)")
     p.set_defaults(func=replay)
 
 
@@ -42,6 +45,11 @@ def replay(args: argparse.Namespace) -> int:
 
         expected = load_profile(args.profile)
     sink = None
+    callbacks = []
+    ply = None
+    if args.ply:
+        ply = _PlyWriter(args.ply)
+        callbacks.append(ply.on_result)
     try:
         if args.publish:
             from edge.io.mcap import RecordingReader
@@ -54,8 +62,17 @@ def replay(args: argparse.Namespace) -> int:
             if args.listen:
                 profile = apply_update(profile, {"zenoh": {"listen": list(args.listen)}})
             sink = ZenohSink(profile, None)
-        report = replay_recording(path, expected_profile=expected,
-                                  on_result=sink.on_result if sink is not None else None)
+            callbacks.append(sink.on_result)
+        if ply is not None:
+            from edge.io.mcap import RecordingReader
+
+            ply.profile = RecordingReader(path).profile
+
+        def on_result(result):
+            for cb in callbacks:
+                cb(result)
+
+        report = replay_recording(path, expected_profile=expected, on_result=on_result if callbacks else None)
     except RecordingError as exc:
         print(f"edge replay: error: {exc}", file=sys.stderr)
         return 2
@@ -64,9 +81,34 @@ def replay(args: argparse.Namespace) -> int:
             sink.close()
     for line in report.lines():
         print(line)
+    if ply is not None:
+        print(f"edge replay: wrote {ply.written} PLY files to {args.ply}")
     if report.mismatches:
         return 1
     if report.problem or report.stacks_compared == 0:
         return 2
     print("edge replay: depth reproduced bit for bit")
     return 0
+
+
+class _PlyWriter:
+    """One PLY per depth map (`edge.runtime.depth.depth_to_points`, stride 1, `edge.io.ply.write_ply`)."""
+
+    def __init__(self, directory: str) -> None:
+        if os.path.exists(directory) and not os.path.isdir(directory):
+            raise ValueError(f"--ply: expected a directory, got the file {directory!r}")
+        os.makedirs(directory, exist_ok=True)
+        self.directory = directory
+        self.profile = None
+        self.written = 0
+
+    def on_result(self, result) -> None:
+        from edge.io.ply import write_ply
+        from edge.runtime.depth import camera_matrix, depth_to_points
+
+        geometry = result.geometry if result.geometry is not None else self.profile.geometry
+        pts = depth_to_points(result.depth_mm, camera_matrix(geometry))
+        grey = result.confidence[result.depth_mm > 0]
+        write_ply(os.path.join(self.directory, f"{self.profile.zenoh.device}_{result.stack:06d}.ply"), pts,
+                  colors=grey)
+        self.written += 1

@@ -29,6 +29,13 @@ def register(subparsers: Any) -> None:
     p.add_argument("--listen", action="append", metavar="ENDPOINT",
                    help="zenoh listen endpoint(s), overriding the profile (e.g. tcp/127.0.0.1:7450)")
     p.add_argument("--connect", action="append", metavar="ENDPOINT", help="zenoh endpoint(s) to connect to")
+    p.add_argument("--ros", action="store_true",
+                   help="also publish ROS 2 topics over rmw_zenoh (Image, CameraInfo, PointCloud2): connects to "
+                        "the rmw_zenohd router of the profile's [ros] table (default tcp/localhost:7447); "
+                        "domain from ROS_DOMAIN_ID (default 0)")
+    p.add_argument("--foxglove", nargs="?", type=int, const=8765, default=None, metavar="PORT",
+                   help="serve depth, confidence, point cloud, calibration and frame tree to the Foxglove app "
+                        "over its WebSocket protocol on 127.0.0.1:PORT (default 8765; needs edge[foxglove])")
     p.add_argument("--interference", action="store_true",
                    help="event / light-curtain simulators: add an unsynchronised second device nearby")
     p.add_argument("--poses", type=int, default=0, metavar="K",
@@ -71,8 +78,15 @@ def load_run_profile(args: argparse.Namespace):
         zenoh["listen"] = list(args.listen)
     if getattr(args, "connect", None):
         zenoh["connect"] = list(args.connect)
-    if zenoh:
-        profile = apply_update(profile, {"zenoh": zenoh}, source=f"{profile.source} + command line")
+    update: dict[str, Any] = {"zenoh": zenoh} if zenoh else {}
+    if getattr(args, "ros", False):
+        update["ros"] = {"enabled": True}
+    if update:
+        profile = apply_update(profile, update, source=f"{profile.source} + command line")
+    if profile.ros.enabled and profile.ros.router not in profile.zenoh.connect:
+        # ROS mode: connect to the rmw_zenohd router (do not listen on its port)
+        profile = apply_update(profile, {"zenoh": {"connect": [*profile.zenoh.connect, profile.ros.router]}},
+                               source=profile.source)
     return profile
 
 
@@ -94,12 +108,24 @@ def build_service(profile, args: argparse.Namespace, *, sinks: list[Any] | None 
 
             recorder = RecordingThread(args.record, profile, sensor_metadata=sensor.info.metadata)
         service = Service(profile, sensor, sinks=sinks, recorder=recorder, queue_capacity=args.queue)
+        zenoh_sink = None
         if not args.no_zenoh:
             from edge.runtime.publish import ZenohSink
 
-            service.sinks.append(ZenohSink(profile, service))
+            zenoh_sink = ZenohSink(profile, service)
+            service.sinks.append(zenoh_sink)
+        if profile.ros.enabled:
+            from edge.runtime.ros_sink import RosSink
+
+            ros_sink = RosSink(profile, session=zenoh_sink.publisher.session if zenoh_sink else None)
+            # before the zenoh sink: it undeclares its entities before that sink closes the shared session
+            service.sinks.insert(service.sinks.index(zenoh_sink) if zenoh_sink else len(service.sinks), ros_sink)
+        if getattr(args, "foxglove", None) is not None:
+            from edge.runtime.foxglove_sink import FoxgloveSink
+
+            service.sinks.append(FoxgloveSink(profile, port=args.foxglove))
     except BaseException:
-        for s in sinks:
+        for s in (service.sinks if service is not None else sinks):
             s.close()
         if recorder is not None:
             recorder.close()
@@ -125,6 +151,8 @@ def run(args: argparse.Namespace) -> int:
           f"{service.profile.camera.width}x{service.profile.camera.height} @ {service.profile.camera.rate_hz:g} fps, "
           f"{service.sensor.info.frames_per_stack} frames/stack), sensor {service.sensor.info.name}"
           + ("" if args.no_zenoh else f", zenoh {service.profile.zenoh.key('*')}")
+          + (f", ROS 2 via {service.profile.ros.router}" if service.profile.ros.enabled else "")
+          + (f", Foxglove ws://127.0.0.1:{args.foxglove}" if getattr(args, "foxglove", None) is not None else "")
           + (f", recording {args.record}" if args.record else ""), flush=True)
     warm_up = getattr(service.pipeline, "warm_up", None)
     if warm_up is not None and not args.quiet:

@@ -1,11 +1,12 @@
 """``edge subscribe``: receive depth from a running service, print rates and latency, save a PNG.
 
-    edge subscribe [--device sim-dlp] [--connect tcp/127.0.0.1:7447] [--png depth.png]
-                   [--count N] [--seconds S]
+    edge subscribe [--device sim-dlp] [--connect tcp/127.0.0.1:7451] [--png depth.png]
+                   [--ply cloud.ply] [--count N] [--seconds S]
 
 Prints one line per second (depth maps/s, median and max latency in ms, dropped, last status
 fps) and a summary; ``--png`` writes the last depth map colour-mapped (cv2.COLORMAP_TURBO, invalid
-pixels black). Exit 1 if no depth map arrived.
+pixels black); ``--ply`` writes the last point cloud of ``sl/<device>/points`` (metres, camera
+optical frame) with `edge.io.ply.write_ply`. Exit 1 if no depth map (or, with --ply, no cloud) arrived.
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.seconds <= 0:
         raise ValueError(f"expected --seconds > 0, got {args.seconds}")
     total, latencies, last = 0, [], None
-    with DepthSubscriber(args.device, connect=args.connect, prefix=args.prefix) as sub:
+    with DepthSubscriber(args.device, connect=args.connect, prefix=args.prefix, points=bool(args.ply)) as sub:
         start = time.monotonic()
         tick, window = start, []
         while time.monotonic() - start < args.seconds and (args.count is None or total < args.count):
@@ -58,8 +59,13 @@ def _run(args: argparse.Namespace) -> int:
                 print(f"{len(window) / (now - tick):6.1f} depth/s  latency p50/max {lat} ms  "
                       f"dropped {sub.dropped}  service fps {fps}", flush=True)
                 tick, window = now, []
+        if args.ply and sub.points is None and last is not None:  # the cloud follows its depth map
+            wait_until = time.monotonic() + 2.0
+            while sub.points is None and time.monotonic() < wait_until:
+                time.sleep(0.05)
         elapsed = time.monotonic() - start
         errors = list(sub.errors)
+        cloud = sub.points
     if last is None:
         print(f"no depth from {args.prefix}/{args.device} in {elapsed:.1f} s (connect {', '.join(args.connect)})")
         return 1
@@ -76,6 +82,14 @@ def _run(args: argparse.Namespace) -> int:
         if not cv2.imwrite(args.png, colorize_depth(last.depth_mm)):
             raise ValueError(f"could not write PNG to {args.png!r}")
         print(f"wrote {args.png}")
+    if args.ply:
+        from edge.io.ply import write_ply
+
+        if cloud is None:
+            print(f"no point cloud from {args.prefix}/{args.device}/points (is [points] publish off?)")
+            return 1
+        write_ply(args.ply, cloud.points)
+        print(f"wrote {args.ply} ({cloud.points.shape[0]} points, frame {cloud.header.get('frame_id', '')})")
     return 0
 
 
@@ -84,8 +98,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--device", default=DEFAULT_PROFILE, help="device name in the key space (default %(default)s)")
     parser.add_argument("--prefix", default="sl", help="key prefix (default %(default)s)")
     parser.add_argument("--connect", action="append", default=None, metavar="ENDPOINT",
-                        help="zenoh endpoint to connect to (repeatable; default tcp/127.0.0.1:7447)")
+                        help="zenoh endpoint to connect to (repeatable; default tcp/127.0.0.1:7451)")
     parser.add_argument("--png", default=None, help="write the last depth map colour-mapped to this PNG")
+    parser.add_argument("--ply", default=None, metavar="FILE",
+                        help="write the last point cloud (sl/<device>/points, metres, optical frame) to this PLY")
     parser.add_argument("--count", type=int, default=None, help="stop after N depth maps")
     parser.add_argument("--seconds", type=float, default=10.0, help="stop after S seconds (default %(default)s)")
     parser.set_defaults(func=lambda a: _run(_defaults(a)))
@@ -93,5 +109,5 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _defaults(args: argparse.Namespace) -> argparse.Namespace:
     if not args.connect:
-        args.connect = ["tcp/127.0.0.1:7447"]
+        args.connect = ["tcp/127.0.0.1:7451"]
     return args

@@ -19,7 +19,14 @@ topic                       schema (encoding)           content
                                                         stack, sequence, timestamp_ns + extras
 ``/<device>/stack``         edge.StackInfo (json)       per-stack metadata from the runtime
 ``/<device>/calibration``   foxglove.CameraCalibration  camera intrinsics from the profile
-                            (pb)                        geometry (plumb_bob, zero distortion)
+                            (pb)                        geometry (plumb_bob, zero distortion):
+                                                        one at the start and one per depth map
+                                                        (same timestamp as the depth)
+``/<device>/points``        foxglove.PointCloud (pb)    per depth map (``[points] record``):
+                                                        x y z float32 metres, optical frame
+``/<device>/tf``            foxglove.FrameTransforms    at the start: ``<name>_link`` ->
+                            (pb)                        ``<name>_optical_frame`` -> ``<name>_
+                                                        projector_optical_frame`` (+baseline x)
 ``/<device>/events``        edge.EventSlice (pb)        event sensors only (registered on the
                                                         first slice): the events of one slot,
                                                         column-wise x, y, t, p plus sequence,
@@ -27,6 +34,10 @@ topic                       schema (encoding)           content
                                                         MCAP ``sequence`` = slice sequence
                                                         (`edge.runtime.event_record`)
 ==========================  ==========================  =======================================
+
+Frame ids (`edge.io.ros.frame_ids`, REP 103 / 105, ``<name>`` = device with ``-`` -> ``_``):
+images, calibration and points are in ``<name>_optical_frame``, so Foxglove projects the depth
+image and draws the cloud in one frame tree.
 
 Further topics are added through `edge.io.mcap_writer.Recorder.register_channel` (same
 ``/<device>/<leaf>`` naming); `topics` lists the standard ones that every recording has.
@@ -44,7 +55,12 @@ from typing import Any
 
 import numpy as np
 from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.PackedElementField_pb2 import PackedElementField
+from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
 from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
+
+from .ros import OPTICAL_ROTATION, frame_ids
 
 __all__ = [
     "MCAP_PROFILE",
@@ -55,6 +71,9 @@ __all__ = [
     "image_to_raw",
     "raw_to_image",
     "camera_calibration",
+    "point_cloud",
+    "cloud_to_points",
+    "frame_transforms",
     "profile_json",
     "JSON_SCHEMAS",
 ]
@@ -90,9 +109,10 @@ JSON_SCHEMAS: dict[str, dict[str, Any]] = {
 
 
 def topics(device: str) -> dict[str, str]:
-    """Topic names for one device: keys raw, raw_info, depth, confidence, output_info, stack, calibration."""
+    """Topic names for one device: keys raw, raw_info, depth, confidence, output_info, stack, calibration,
+    points, tf."""
     return {leaf: f"/{device}/{leaf}" for leaf in
-            ("raw", "raw_info", "depth", "confidence", "output_info", "stack", "calibration")}
+            ("raw", "raw_info", "depth", "confidence", "output_info", "stack", "calibration", "points", "tf")}
 
 
 def _timestamp(msg: Any, timestamp_ns: int) -> None:
@@ -144,6 +164,44 @@ def camera_calibration(geometry: Any, width: int, height: int, *, timestamp_ns: 
                             R=[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
                             P=[f, 0.0, cx, 0.0, 0.0, f, cy, 0.0, 0.0, 0.0, 1.0, 0.0])
     _timestamp(msg, timestamp_ns)
+    return msg
+
+
+def point_cloud(xyz: np.ndarray, *, timestamp_ns: int, frame_id: str) -> PointCloud:
+    """foxglove.PointCloud of (N, 3) points (metres): fields x y z FLOAT32, point_stride 12, LE."""
+    xyz = np.ascontiguousarray(np.asarray(xyz), dtype="<f4")
+    if xyz.ndim != 2 or xyz.shape[1] != 3:
+        raise ValueError(f"expected (N, 3) points, got {xyz.shape}")
+    msg = PointCloud(frame_id=frame_id, point_stride=12, data=xyz.tobytes(),
+                     fields=[PackedElementField(name=c, offset=4 * i, type=PackedElementField.FLOAT32)
+                             for i, c in enumerate("xyz")])
+    msg.pose.orientation.w = 1.0
+    _timestamp(msg, timestamp_ns)
+    return msg
+
+
+def cloud_to_points(msg: PointCloud) -> np.ndarray:
+    """(N, 3) float32 x y z of a foxglove.PointCloud written by `point_cloud`."""
+    names = [(f.name, f.offset, f.type) for f in msg.fields]
+    if names[:3] != [("x", 0, 7), ("y", 4, 7), ("z", 8, 7)] or msg.point_stride < 12:
+        raise ValueError(f"expected a PointCloud with float32 x y z at offsets 0 4 8, got {names}")
+    n = len(msg.data) // msg.point_stride
+    rows = np.frombuffer(msg.data, np.uint8, count=n * msg.point_stride).reshape(n, msg.point_stride)
+    return rows[:, :12].copy().view("<f4").reshape(n, 3).astype(np.float32)
+
+
+def frame_transforms(device: str, baseline_m: float, *, timestamp_ns: int) -> FrameTransforms:
+    """foxglove.FrameTransforms of a device's frame tree (`edge.io.ros.frame_ids`): body -> camera
+    optical frame (REP 103 rotation), optical -> projector optical frame (+baseline_m along x)."""
+    ids = frame_ids(device)
+    msg = FrameTransforms()
+    t = msg.transforms.add(parent_frame_id=ids["base"], child_frame_id=ids["optical"])
+    t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w = OPTICAL_ROTATION
+    _timestamp(t, timestamp_ns)
+    p = msg.transforms.add(parent_frame_id=ids["optical"], child_frame_id=ids["projector"])
+    p.translation.x = float(baseline_m)
+    p.rotation.w = 1.0
+    _timestamp(p, timestamp_ns)
     return msg
 
 

@@ -380,4 +380,16 @@ def _decode(schema: Schema | None, channel: Channel, data: bytes) -> Any:
             msg = CameraCalibration()
             msg.ParseFromString(data)
             return msg
+        if schema.name == "foxglove.PointCloud":
+            from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
+
+            msg = PointCloud()
+            msg.ParseFromString(data)
+            return msg
+        if schema.name == "foxglove.FrameTransforms":
+            from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+
+            msg = FrameTransforms()
+            msg.ParseFromString(data)
+            return msg
     return bytes(data)

@@ -33,6 +33,8 @@ from typing import Any, Mapping
 
 import numpy as np
 from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
 from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
 from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
@@ -40,6 +42,7 @@ from mcap_protobuf.schema import build_file_descriptor_set
 from edge import __version__
 from edge.profiles import Profile, profile_to_dict
 
+from .ros import frame_ids
 from .mcap_format import (
     JSON_SCHEMAS,
     MCAP_PROFILE,
@@ -47,7 +50,9 @@ from .mcap_format import (
     PROFILE_METADATA,
     SENSOR_METADATA,
     camera_calibration,
+    frame_transforms,
     image_to_raw,
+    point_cloud,
     profile_json,
     topics,
 )
@@ -76,6 +81,7 @@ class Recorder:
         self.path = os.fspath(path)
         self.profile = profile
         self.topics = topics(profile.zenoh.device)
+        self.frame_id = frame_ids(profile.zenoh.device)["optical"]
         self.messages_written = 0
         self.bytes_in = 0
         self._lock = threading.Lock()
@@ -98,9 +104,9 @@ class Recorder:
                                         media_type="application/json", data=text.encode())
             if sensor_metadata:
                 self._writer.add_metadata(SENSOR_METADATA, {str(k): str(v) for k, v in sensor_metadata.items()})
-            calib = camera_calibration(profile.geometry, profile.camera.width, profile.camera.height,
-                                       timestamp_ns=now)
-            self._add("calibration", calib.SerializeToString(), now, 0)
+            self._add("calibration", self._calibration(now), now, 0)
+            tf = frame_transforms(profile.zenoh.device, profile.geometry.baseline_m, timestamp_ns=now)
+            self._add("tf", tf.SerializeToString(), now, 0)
             self._file.flush()
         except BaseException:
             self._file.close()
@@ -110,7 +116,7 @@ class Recorder:
 
     def _register(self) -> None:
         proto = {}
-        for cls in (RawImage, CameraCalibration):
+        for cls in (RawImage, CameraCalibration, PointCloud, FrameTransforms):
             proto[cls.DESCRIPTOR.full_name] = self._writer.register_schema(
                 name=cls.DESCRIPTOR.full_name, encoding="protobuf",
                 data=build_file_descriptor_set(cls).SerializeToString())
@@ -125,10 +131,17 @@ class Recorder:
             "output_info": ("json", js["edge.OutputInfo"]),
             "stack": ("json", js["edge.StackInfo"]),
             "calibration": ("protobuf", proto["foxglove.CameraCalibration"]),
+            "points": ("protobuf", proto["foxglove.PointCloud"]),
+            "tf": ("protobuf", proto["foxglove.FrameTransforms"]),
         }
         for leaf, (encoding, schema_id) in layout.items():
             self._channels[leaf] = self._writer.register_channel(
                 topic=self.topics[leaf], message_encoding=encoding, schema_id=schema_id)
+
+    def _calibration(self, timestamp_ns: int, geometry: Any = None) -> bytes:
+        p = self.profile
+        return camera_calibration(p.geometry if geometry is None else geometry, p.camera.width, p.camera.height,
+                                  timestamp_ns=timestamp_ns, frame_id=self.frame_id).SerializeToString()
 
     def _add(self, leaf: str, data: bytes, log_time: int, sequence: int | None = None) -> None:
         self._add_to(self._channels[leaf], data, log_time, sequence)
@@ -203,7 +216,7 @@ class Recorder:
 
         ``extra`` keys (JSON-able) go into the ``raw_info`` message next to the standard ones.
         """
-        msg = image_to_raw(image, timestamp_ns=timestamp_ns, frame_id="camera")
+        msg = image_to_raw(image, timestamp_ns=timestamp_ns, frame_id=self.frame_id)
         info = {"sequence": int(sequence), "timestamp_ns": int(timestamp_ns), "stack": int(stack),
                 "projector_frame": int(projector_frame), "exposure_us": float(exposure_us),
                 "role": str(role), **extra}
@@ -226,14 +239,23 @@ class Recorder:
                        exposure_us=getattr(frame, "exposure_us", 0.0), role=role, **meta)
 
     def write_depth(self, depth_mm: np.ndarray, confidence: np.ndarray, *, timestamp_ns: int,
-                    stack: int, sequence: int, **extra: Any) -> None:
-        """Record one output: depth (H, W) uint16 mm (0 = invalid) and confidence (H, W) uint8."""
+                    stack: int, sequence: int, points: np.ndarray | None = None, geometry: Any = None,
+                    **extra: Any) -> None:
+        """Record one output: depth (H, W) uint16 mm (0 = invalid) and confidence (H, W) uint8, the
+        camera calibration with the same timestamp and, if given, its (N, 3) float32 points
+        (metres, optical frame; `edge.runtime.depth.depth_to_points`).  ``geometry``: the geometry
+        the depth was computed with (default: the profile's), for the calibration message."""
         depth_mm, confidence = np.asarray(depth_mm), np.asarray(confidence)
         if depth_mm.dtype != np.uint16 or confidence.dtype != np.uint8 or depth_mm.shape != confidence.shape:
             raise ValueError("expected depth uint16 (H, W) and confidence uint8 of the same shape, got "
                              f"{depth_mm.dtype} {depth_mm.shape} and {confidence.dtype} {confidence.shape}")
-        d = image_to_raw(depth_mm, timestamp_ns=timestamp_ns, encoding="16UC1").SerializeToString()
-        c = image_to_raw(confidence, timestamp_ns=timestamp_ns, encoding="mono8").SerializeToString()
+        d = image_to_raw(depth_mm, timestamp_ns=timestamp_ns, encoding="16UC1",
+                         frame_id=self.frame_id).SerializeToString()
+        c = image_to_raw(confidence, timestamp_ns=timestamp_ns, encoding="mono8",
+                         frame_id=self.frame_id).SerializeToString()
+        calib = self._calibration(timestamp_ns, geometry)
+        cloud = None if points is None else point_cloud(points, timestamp_ns=timestamp_ns,
+                                                        frame_id=self.frame_id).SerializeToString()
         info = json.dumps({"stack": int(stack), "sequence": int(sequence),
                            "timestamp_ns": int(timestamp_ns), **extra}).encode()
         with self._lock:
@@ -241,6 +263,9 @@ class Recorder:
             self._add("output_info", info, timestamp_ns, sequence)
             self._add("depth", d, timestamp_ns, sequence)
             self._add("confidence", c, timestamp_ns, sequence)
+            self._add("calibration", calib, timestamp_ns)
+            if cloud is not None:
+                self._add("points", cloud, timestamp_ns, sequence)
             self._file.flush()
 
     def write_stack(self, info: Mapping[str, Any], *, timestamp_ns: int) -> None:

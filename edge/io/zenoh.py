@@ -17,6 +17,12 @@ Keys (``<prefix>/<device>`` from the profile's ``[zenoh]`` table, e.g. ``sl/sim-
                             any error the running profile is kept. ``zenoh.*`` and ``name`` cannot
                             change while running.
 ``sl/<device>/alive``       liveliness token, present while the publisher is open.
+``sl/<device>/points``      the point cloud of each depth map (`DepthPublisher.publish_points`):
+                            N*12 bytes, N points of float32 little-endian x y z in metres in the
+                            camera optical frame (REP 103: x right, y down, z forward); header
+                            ``{"v": 1, "encoding": "xyz32f", "units": "m", "count": N,
+                            "frame_id", "timestamp_ns", "sequence", "stack", "published_ns"}``
+                            (`decode_points`).
 
 Header (the zenoh *attachment* of every depth and confidence sample): UTF-8 JSON object
 ``{"v": 1, "width": W, "height": H, "encoding": "16UC1" | "mono8", "units": "mm" | "1/255",
@@ -27,7 +33,7 @@ Header (the zenoh *attachment* of every depth and confidence sample): UTF-8 JSON
 Five-line subscriber (see also `DepthSubscriber`)::
 
     import json, zenoh, numpy as np
-    conf = zenoh.Config(); conf.insert_json5("connect/endpoints", '["tcp/127.0.0.1:7447"]')
+    conf = zenoh.Config(); conf.insert_json5("connect/endpoints", '["tcp/127.0.0.1:7451"]')
     s = zenoh.open(conf)
     def on(sample): h = json.loads(sample.attachment.to_bytes()); d = np.frombuffer(sample.payload.to_bytes(), "<u2").reshape(h["height"], h["width"]); print(h["sequence"], d.max())
     sub = s.declare_subscriber("sl/sim-dlp/depth", on)
@@ -62,6 +68,8 @@ __all__ = [
     "get_config",
     "update_config",
     "is_alive",
+    "decode_points",
+    "PointsSample",
 ]
 
 HEADER_VERSION = 1
@@ -133,6 +141,22 @@ def decode_image(payload: bytes, header: Mapping[str, Any]) -> np.ndarray:
     return np.frombuffer(payload, dtype=dtype).reshape(h, w).astype(dtype.newbyteorder("="))
 
 
+def decode_points(payload: bytes, attachment: bytes | None) -> tuple[np.ndarray, dict[str, Any]]:
+    """((N, 3) float32 points in metres, header) of a ``sl/<device>/points`` sample."""
+    if not attachment:
+        raise ValueError("expected a JSON header attachment on the points sample, got none")
+    try:
+        header = json.loads(attachment)
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"expected a JSON points header, got undecodable bytes ({exc})") from None
+    if not isinstance(header, dict) or header.get("encoding") != "xyz32f" or not isinstance(header.get("count"), int):
+        raise ValueError(f"expected a points header with encoding 'xyz32f' and an integer count, got {header!r}")
+    n = header["count"]
+    if len(payload) != 12 * n:
+        raise ValueError(f"expected {12 * n} payload bytes for {n} xyz32f points, got {len(payload)}")
+    return np.frombuffer(payload, dtype="<f4").reshape(n, 3).astype(np.float32), header
+
+
 def _parameters_to_update(parameters: Any) -> dict[str, Any]:
     """``a.b=1;c.d=hard`` -> {"a": {"b": 1}, "c": {"d": "hard"}} (values JSON-parsed when possible)."""
     update: dict[str, Any] = {}
@@ -170,7 +194,7 @@ class DepthPublisher:
         self._lock = threading.Lock()
         self._closed = False
         z = profile.zenoh
-        self.keys = {leaf: z.key(leaf) for leaf in ("depth", "confidence", "status", "config", "alive")}
+        self.keys = {leaf: z.key(leaf) for leaf in ("depth", "confidence", "status", "config", "alive", "points")}
         self._own_session = session is None
         self.session = session if session is not None else open_session(z)
         try:
@@ -180,6 +204,8 @@ class DepthPublisher:
             self._confidence = self.session.declare_publisher(self.keys["confidence"], encoding=_CONF_ENCODING)
             self._status = self.session.declare_publisher(self.keys["status"],
                                                           encoding=zenoh.Encoding.APPLICATION_JSON)
+            self._points = self.session.declare_publisher(self.keys["points"],
+                                                          encoding=_DEPTH_ENCODING.with_schema("xyz32f"))
             self._queryable = self.session.declare_queryable(self.keys["config"], self._on_query)
             self._token = self.session.liveliness().declare_token(self.keys["alive"])
         except BaseException:
@@ -209,6 +235,17 @@ class DepthPublisher:
             head = encode_header(width=w, height=h, encoding="mono8", timestamp_ns=timestamp_ns,
                                  sequence=sequence, stack=stack)
             self._confidence.put(np.ascontiguousarray(confidence).tobytes(), attachment=head)
+
+    def publish_points(self, xyz: np.ndarray, *, timestamp_ns: int, sequence: int, stack: int = -1,
+                       frame_id: str = "") -> None:
+        """Publish one point cloud: (N, 3) points in metres (stored float32 LE), see the module docstring."""
+        xyz = np.asarray(xyz)
+        if xyz.ndim != 2 or xyz.shape[1] != 3:
+            raise ValueError(f"expected points as (N, 3), got {xyz.dtype} {xyz.shape}")
+        head = json.dumps({"v": HEADER_VERSION, "encoding": "xyz32f", "units": "m", "count": int(xyz.shape[0]),
+                           "frame_id": frame_id, "timestamp_ns": int(timestamp_ns), "sequence": int(sequence),
+                           "stack": int(stack), "published_ns": time.time_ns()}).encode()
+        self._points.put(np.ascontiguousarray(xyz, dtype="<f4").tobytes(), attachment=head)
 
     def publish_status(self, status: Mapping[str, Any]) -> None:
         """Publish a JSON status object (``device`` and ``time_ns`` are added)."""
@@ -264,7 +301,7 @@ class DepthPublisher:
         if self._closed:
             return
         self._closed = True
-        for entity in (self._token, self._queryable, self._status, self._confidence, self._depth):
+        for entity in (self._token, self._queryable, self._points, self._status, self._confidence, self._depth):
             try:
                 entity.undeclare()
             except Exception:
@@ -293,6 +330,12 @@ class DepthSample:
     def latency_ms(self) -> float:
         """Arrival time minus the stack's timestamp, in ms."""
         return (self.received_ns - int(self.header["timestamp_ns"])) / 1e6
+
+
+@dataclass
+class PointsSample:
+    points: np.ndarray                   # (N, 3) float32 metres, optical frame
+    header: dict[str, Any]               # the sample's header (see decode_points)
 
 
 def _reply_payload(replies: Iterable[Any], what: str) -> bytes:
@@ -326,14 +369,15 @@ def is_alive(session: zenoh.Session, device: str, *, prefix: str = "sl", timeout
 class DepthSubscriber:
     """Client side: receive decoded depth (+ confidence) and status of one device.
 
-    ``DepthSubscriber("sim-dlp", connect=["tcp/127.0.0.1:7447"])`` opens a peer session with
+    ``DepthSubscriber("sim-dlp", connect=["tcp/127.0.0.1:7451"])`` opens a peer session with
     multicast scouting off (or uses ``session``). `receive` returns `DepthSample` objects in
     arrival order; at most ``max_queue`` are buffered (older ones are dropped and counted in
-    ``dropped``). ``status`` holds the latest status dict.
+    ``dropped``). ``status`` holds the latest status dict; with ``points=True`` ``points`` holds
+    the latest `PointsSample` of ``sl/<device>/points``.
     """
 
-    def __init__(self, device: str, *, connect: Iterable[str] = ("tcp/127.0.0.1:7447",), prefix: str = "sl",
-                 session: zenoh.Session | None = None, max_queue: int = 8):
+    def __init__(self, device: str, *, connect: Iterable[str] = ("tcp/127.0.0.1:7451",), prefix: str = "sl",
+                 session: zenoh.Session | None = None, max_queue: int = 8, points: bool = False):
         self.device, self.prefix = device, prefix
         self._own_session = session is None
         self.session = session if session is not None else zenoh.open(make_config(connect=connect))
@@ -343,6 +387,7 @@ class DepthSubscriber:
         self.dropped = 0
         self.errors: list[str] = []
         self.status: dict[str, Any] | None = None
+        self.points: PointsSample | None = None  # the latest point cloud (with points=True)
         self._closed = False
         base = f"{prefix}/{device}"
         self._subs = [
@@ -350,6 +395,8 @@ class DepthSubscriber:
             self.session.declare_subscriber(f"{base}/confidence", self._on_confidence),
             self.session.declare_subscriber(f"{base}/status", self._on_status),
         ]
+        if points:
+            self._subs.append(self.session.declare_subscriber(f"{base}/points", self._on_points))
 
     def _on_depth(self, sample: zenoh.Sample) -> None:
         received = time.time_ns()
@@ -382,6 +429,15 @@ class DepthSubscriber:
             while len(self._confidence) > 32:
                 self._confidence.pop(next(iter(self._confidence)))
             self._cond.notify_all()
+
+    def _on_points(self, sample: zenoh.Sample) -> None:
+        try:
+            xyz, header = decode_points(sample.payload.to_bytes(),
+                                        sample.attachment.to_bytes() if sample.attachment is not None else None)
+        except ValueError as exc:
+            self.errors.append(f"points: {exc}")
+            return
+        self.points = PointsSample(xyz, header)
 
     def _on_status(self, sample: zenoh.Sample) -> None:
         try:

@@ -56,7 +56,7 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     prefix = "sl"                         # keys are <prefix>/<device>/depth etc.
     device = "sim-dlp"                    # default: the profile name
     mode = "peer"                         # peer | client | router
-    listen = ["tcp/127.0.0.1:7447"]
+    listen = ["tcp/127.0.0.1:7451"]
     connect = []
     multicast_scouting = false
     status_period_s = 1.0
@@ -66,6 +66,22 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     compression = "zstd"                  # zstd | lz4 | none
     raw = true                            # record raw camera frames
     outputs = true                        # record depth and confidence
+
+    [points]                              # point clouds (edge.runtime.depth.depth_to_points)
+    stride = 2                            # every stride-th pixel row and column (1 = all)
+    publish = true                        # live: sl/<device>/points, ROS PointCloud2, Foxglove
+    record = true                         # MCAP: /<device>/points (foxglove.PointCloud)
+
+    [oak]                                 # OAK-D Pro backend (edge.sensors.oak); live-settable
+    dot_intensity = 0.8                   # IR dot projector on its source-code slots, 0..1
+    flood_intensity = 0.0                 # IR flood LED on WHITE frames, 0..1
+    lead_frames = 2                       # emitter command this many frames ahead (latency)
+    emitter_control = "script"            # script (on-device Script node per frame) | host
+
+    [ros]                                 # ROS 2 over rmw_zenoh (edge.runtime.ros_sink)
+    enabled = false                       # or `edge run --ros`; domain from ROS_DOMAIN_ID (default 0)
+    router = "tcp/localhost:7447"         # the rmw_zenohd router to connect to
+    node = ""                             # ROS node name ("" = device name with '-' -> '_')
 
     [sim]
     scene = "steps"                       # edge.sim.make_scene name (edge.sim.scene_names())
@@ -96,6 +112,9 @@ __all__ = [
     "ZenohSettings",
     "RecordingSettings",
     "SimSettings",
+    "PointsSettings",
+    "RosSettings",
+    "OakSettings",
     "build_profile",
     "profile_to_dict",
     "DECODER_METHODS",
@@ -201,7 +220,7 @@ class ZenohSettings:
     device: str = _f(pattern=_KEY_CHUNK)
     prefix: str = _f("sl", pattern=_KEY_CHUNK + r"(/" + _KEY_CHUNK + r")*")
     mode: str = _f("peer", choices=ZENOH_MODES)
-    listen: tuple[str, ...] = _f(("tcp/127.0.0.1:7447",), pattern=_ENDPOINT)
+    listen: tuple[str, ...] = _f(("tcp/127.0.0.1:7451",), pattern=_ENDPOINT)
     connect: tuple[str, ...] = _f((), pattern=_ENDPOINT)
     multicast_scouting: bool = _f(False)
     status_period_s: float = _f(1.0, lo=0.0, hi=3600.0, lo_open=True)
@@ -217,6 +236,28 @@ class RecordingSettings:
     compression: str = _f("zstd", choices=COMPRESSIONS)
     raw: bool = _f(True)
     outputs: bool = _f(True)
+
+
+@dataclass(frozen=True)
+class PointsSettings:
+    stride: int = _f(2, lo=1, hi=64)
+    publish: bool = _f(True)
+    record: bool = _f(True)
+
+
+@dataclass(frozen=True)
+class OakSettings:
+    dot_intensity: float = _f(0.8, lo=0.0, hi=1.0)
+    flood_intensity: float = _f(0.0, lo=0.0, hi=1.0)
+    lead_frames: int = _f(2, lo=0, hi=64)
+    emitter_control: str = _f("script", choices=("script", "host"))
+
+
+@dataclass(frozen=True)
+class RosSettings:
+    enabled: bool = _f(False)
+    router: str = _f("tcp/localhost:7447", pattern=_ENDPOINT)
+    node: str = _f("", pattern=r"([A-Za-z_][A-Za-z0-9_]*)?")
 
 
 @dataclass(frozen=True)
@@ -247,6 +288,9 @@ class Profile:
     edc: EdcSettings = _f(EdcSettings())
     recording: RecordingSettings = _f(RecordingSettings())
     sim: SimSettings = _f(SimSettings())
+    points: PointsSettings = _f(PointsSettings())
+    ros: RosSettings = _f(RosSettings())
+    oak: OakSettings = _f(OakSettings())
     source: str = field(default="<dict>", compare=False, metadata={"internal": True})
 
 

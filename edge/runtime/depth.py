@@ -94,3 +94,40 @@ def confidence_to_u8(confidence: np.ndarray, valid: np.ndarray | None = None) ->
     if valid is not None:
         out[~np.asarray(valid, dtype=bool)] = 0
     return out
+
+
+def camera_matrix(geometry) -> np.ndarray:
+    """(3, 3) float64 intrinsics K of the rectified camera in a profile / sim geometry:
+    ``[[f, 0, cx_camera], [0, f, cy], [0, 0, 1]]`` (pixels, square pixels, no distortion)."""
+    f, cx, cy = float(geometry.focal_px), float(geometry.cx_camera), float(geometry.cy)
+    return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]], dtype=np.float64)
+
+
+def depth_to_points(depth_mm: np.ndarray, k: np.ndarray, *, stride: int = 1) -> np.ndarray:
+    """Back-project a depth map through a pinhole camera: the one point-cloud function of edge.
+
+    depth_mm: (H, W) uint16 millimetres, 0 = invalid (skipped).  k: (3, 3) intrinsics (pixels,
+    e.g. `camera_matrix`).  stride: use every ``stride``-th row and column (1 = every pixel).
+    Returns (N, 3) float32 metres in the camera optical frame (REP 103: x right, y down,
+    z forward), pixel (u, v) -> ``((u - cx) z / fx, (v - cy) z / fy, z)``, valid pixels in
+    row-major order.
+    """
+    depth_mm = np.asarray(depth_mm)
+    if depth_mm.ndim != 2 or depth_mm.dtype != np.uint16:
+        raise ValueError(f"expected depth as (H, W) uint16 mm, got {depth_mm.dtype} {depth_mm.shape}")
+    k = np.asarray(k, dtype=np.float64)
+    if k.shape != (3, 3) or not (k[0, 0] > 0 and k[1, 1] > 0):
+        raise ValueError(f"expected a (3, 3) intrinsics matrix with fx, fy > 0, got {k.tolist()}")
+    if int(stride) < 1:
+        raise ValueError(f"expected a point stride >= 1, got {stride}")
+    s = int(stride)
+    d = depth_mm[::s, ::s]
+    v, u = np.nonzero(d)
+    z = d[v, u].astype(np.float32) * np.float32(1e-3)
+    u = (u * s).astype(np.float32)
+    v = (v * s).astype(np.float32)
+    out = np.empty((z.size, 3), dtype=np.float32)
+    out[:, 0] = (u - np.float32(k[0, 2])) * z / np.float32(k[0, 0])
+    out[:, 1] = (v - np.float32(k[1, 2])) * z / np.float32(k[1, 1])
+    out[:, 2] = z
+    return out

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -56,6 +56,7 @@ class DepthResult:
     edc_rounds: int = 0
     extra_frames: tuple[Frame, ...] = field(default=())
     stats: dict[str, int] = field(default_factory=dict)
+    geometry: Any = None  # the geometry the depth was computed with (set by the service; None = profile's)
 
     @property
     def valid_fraction(self) -> float:

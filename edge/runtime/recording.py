@@ -104,9 +104,16 @@ class RecordingThread:
             self.frames_written += 1
         else:
             r: DepthResult = item
+            pts = None
+            settings = self.recorder.profile.points
+            if settings.record:
+                from .points import result_points
+
+                pts = result_points(r, self.recorder.profile.geometry, settings.stride)
             self.recorder.write_depth(r.depth_mm, r.confidence, timestamp_ns=r.timestamp_ns, stack=r.stack,
                                       sequence=r.sequence, edc_rounds=r.edc_rounds,
-                                      valid_fraction=round(r.valid_fraction, 6))
+                                      valid_fraction=round(r.valid_fraction, 6), points=pts,
+                                      geometry=r.geometry)
             self.outputs_written += 1
 
     def _loop(self) -> None:

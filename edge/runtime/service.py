@@ -30,7 +30,7 @@ from .pipeline import DepthResult, make_pipeline
 from .stack_queue import Closed, LatestQueue
 
 #: Profile tables that may change while the service runs (applied between stacks).
-LIVE_TABLES = ("decoder", "edc", "geometry")
+LIVE_TABLES = ("decoder", "edc", "geometry", "oak")
 #: The service stops when this many stacks in a row fail to decode (a persistent fault).
 MAX_CONSECUTIVE_DECODE_ERRORS = 10
 
@@ -89,6 +89,8 @@ class Service:
         self.last_result: DepthResult | None = None
         self.results_seen = 0
         self.pipeline_stats: dict[str, int] = {}  # sums of every decoded stack's DepthResult.stats
+        self.geometry_source = "profile"  # or "device calibration" (see _use_device_geometry)
+        self._last_exposure_us: float | None = None
 
     # -- control ------------------------------------------------------------------------------
     def stop(self) -> None:
@@ -114,6 +116,11 @@ class Service:
             if frozen:
                 raise ConfigRejected(
                     f"cannot change {', '.join(frozen)} while running (live tables: {', '.join(LIVE_TABLES)})")
+            if "oak" in {k.split(".")[0] for k in changed_keys(self.profile, new)}:
+                apply = getattr(self.sensor, "apply_settings", None)
+                if apply is None:
+                    raise ConfigRejected(f"sensor {self.sensor.info.name!r} has no OAK emitters to set")
+                apply(new.oak)  # ValueError -> rejected, the running settings are kept
             pipeline = self.pipeline_factory(new)
         except ValueError:
             with self._lock:
@@ -135,6 +142,7 @@ class Service:
                     break
                 if frame is None:
                     continue
+                self._last_exposure_us = frame.exposure_us
                 if self.recorder is not None:
                     self.recorder.on_frame(frame)
                 stack = self.assembler.push(frame)
@@ -188,6 +196,8 @@ class Service:
                 break
 
     def _deliver(self, result: DepthResult) -> None:
+        if result.geometry is None:  # sinks back-project with the geometry that made this depth map
+            result = dataclasses.replace(result, geometry=getattr(self.pipeline, "geometry", self.profile.geometry))
         if self.recorder is not None:
             for frame in result.extra_frames:
                 self.recorder.on_frame(frame)
@@ -248,7 +258,60 @@ class Service:
             "sensor_stats": self.sensor.stats() if callable(getattr(self.sensor, "stats", None)) else None,
             "errors": self.counters.last_error,
             **{k: v for k, v in self.pipeline_stats.items() if k not in ("stacks_decoded",)},
+            **self._camera_status(),
         }
+
+    def _sensor_device(self) -> dict[str, Any]:
+        from edge import __version__
+
+        fn = getattr(self.sensor, "device_status", None)
+        if callable(fn):
+            try:
+                return dict(fn())
+            except Exception as exc:
+                return {"error": f"{type(exc).__name__}: {exc}"}
+        meta = self.sensor.info.metadata or {}
+        sim = meta.get("backend") == "sim"
+        return {"serial": meta.get("serial") or meta.get("device_id"),
+                "firmware": meta.get("firmware") or (f"edge {__version__} simulator" if sim else None),
+                "projector_power": self.profile.sim.projector if sim else None, "gain": None}
+
+    def _camera_status(self) -> dict[str, Any]:
+        """Exposure, gain, projector power, serial, firmware, edge version and intrinsics (what a
+        RealSense / depthai user expects in a status message)."""
+        from edge import __version__ as version
+        from edge.io.ros import frame_ids
+
+        dev = self._sensor_device()
+        g = getattr(self.pipeline, "geometry", None) or self.profile.geometry
+        cam = self.profile.camera
+        exposure = dev.get("exposure_us") if dev.get("exposure_us") is not None else self._last_exposure_us
+        return {
+            "edge_version": version,
+            "exposure_us": exposure,
+            "gain": dev.get("gain", dev.get("iso")),
+            "projector_power": dev.get("projector_power", dev.get("dot_intensity")),
+            "serial": dev.get("serial"),
+            "firmware": dev.get("firmware", dev.get("depthai_version")),
+            "intrinsics": {"width": cam.width, "height": cam.height, "fx": g.focal_px, "fy": g.focal_px,
+                           "cx": g.cx_camera, "cy": g.cy, "baseline_m": g.baseline_m, "distortion": "none",
+                           "frame_id": frame_ids(self.profile.zenoh.device)["optical"],
+                           "source": self.geometry_source},
+            "sensor_device": dev,
+        }
+
+    def _use_device_geometry(self) -> None:
+        """After ``sensor.start``: a sensor's own calibration (``device_geometry``, e.g. an OAK's
+        ``readCalibration``) replaces the profile's geometry for depth and everything published."""
+        geometry = getattr(self.sensor, "device_geometry", None)
+        if not geometry:
+            return
+        from edge.profiles import apply_update
+
+        new = apply_update(self.profile, {"geometry": dict(geometry)}, source=f"{self.profile.source} + device calibration")
+        self.pipeline = self.pipeline_factory(new)
+        self.profile = new
+        self.geometry_source = "device calibration"
 
     def _emit_status(self) -> None:
         status = self.status()
@@ -281,6 +344,7 @@ class Service:
             self.warm_up_s = warm_up()
         self.sensor.start()
         try:
+            self._use_device_geometry()
             self._threads = [
                 threading.Thread(target=self._capture_loop, name="edge-capture", daemon=True),
                 threading.Thread(target=self._decode_loop, name="edge-decode", daemon=True),

@@ -46,16 +46,32 @@ projector frame of a camera frame follows from its sequence number: position
 ``(seq - seq0) % frames_per_stack`` of the stack schedule, stack id ``(seq - seq0) // frames_per_stack``;
 so a lost frame or pair leaves a hole that the assembler drops.
 
-Emitters: depthai has no per-frame emitter API; when a frame with a new highest sequence number
-``s`` arrives, the host sets the dot projector (and optionally the flood light) for frame
-``s + lead_frames`` (`EmitterSchedule`).  The emitter pulses follow the left camera strobe (CAM_B).
+Emitters: depthai has no per-frame emitter API.  With a device and ``[oak] emitter_control =
+"script"`` (default) the switching runs ON THE DEVICE, as depthai's documented dot/flood
+alternation example does: a `dai.node.Script` on LEON_CSS (`emitter_script`) is woken by every
+left frame (its ``frame`` input, linked to the left output, non-blocking, queue 1), and for the
+frame with sequence number ``s`` sets ``Device.setIrLaserDotProjectorIntensity`` /
+``Device.setIrFloodLightIntensity`` for frame ``s + lead_frames`` from a per-position table of the
+schedule (`EmitterSchedule.table`); stack numbering is then absolute (``seq0 = 0``) so host and
+device agree on the schedule position ``seq % frames_per_stack`` without talking.  A new table
+(`OakSensor.apply_settings`, e.g. a live ``oak`` config update) goes to the script's ``config``
+input from a host input queue.  ``emitter_control = "host"``, an explicit ``emitter`` object or a
+host-only pipeline use host calls instead: when a frame with a new highest sequence number ``s``
+arrives, the host sets the emitters for frame ``s + lead_frames``.  Intensities and lead frames
+come from the profile's ``[oak]`` table.  The emitter pulses follow the left camera strobe (CAM_B).
+
+Device status (`OakSensor.device_status`, in the service status as ``sensor_device``): device id
+(serial), product name, depthai / bootloader version, USB speed (``getUsbSpeed``), chip
+temperature (``getChipTemperature().average``, degC), LEON CSS / MSS CPU load
+(``getLeonCssCpuUsage`` / ``getLeonMssCpuUsage``, percent), the emitter settings, and the last
+frame's exposure and sensitivity (ISO, the sensor's gain).
 
 Geometry: with a device, `start` reads the calibration (``device.readCalibration()``) and
 `geometry_from_calibration` gives the rectified geometry (focal length and principal point of the
 right camera at the output size, baseline CAM_C-CAM_B from cm to m, ``cx_projector = cx_camera``)
-in ``OakSensor.device_geometry`` and the sensor metadata; the depth uses the profile's geometry,
-so apply it with ``apply_update(profile, {"geometry": sensor.device_geometry})`` (the metadata notes
-a mismatch over 2 %).
+in ``OakSensor.device_geometry`` and the sensor metadata (which notes a mismatch over 2 % with the
+profile); `edge.runtime.service.Service` applies ``device_geometry`` to its profile right after
+``start``, so depth, camera info and point clouds use the device's calibration.
 
 NOT verified on hardware here (no device on the build machine): opening a device, the emitter
 command latency (``lead_frames``), the exact pulse/exposure alignment, frame rates above 60 fps,
@@ -285,6 +301,11 @@ class EmitterSchedule:
         if self.lead_frames < 0:
             raise ValueError(f"lead_frames must be >= 0, got {self.lead_frames}")
 
+    def table(self) -> tuple[list[float], list[float]]:
+        """(dot, flood) intensity lists, one entry per schedule position (the Script node's table)."""
+        pairs = [self.intensities(i) for i in range(len(self.schedule))]
+        return [d for d, _ in pairs], [f for _, f in pairs]
+
     def intensities(self, position: int) -> tuple[float, float]:
         """(dot, flood) for schedule position ``position`` (wraps around)."""
         pf = parse_projector_frame(int(self.schedule[position % len(self.schedule)]))
@@ -307,6 +328,64 @@ class RecordingEmitter:
     def setIrFloodLightIntensity(self, intensity: float, mask: int = -1) -> bool:  # noqa: N802
         self.commands.append(("flood", float(intensity)))
         return True
+
+
+def _config_text(emitters: EmitterSchedule) -> str:
+    dot, flood = emitters.table()
+    return f"{','.join(f'{v:.6g}' for v in dot)};{','.join(f'{v:.6g}' for v in flood)};{int(emitters.lead_frames)}"
+
+
+def emitter_script(emitters: EmitterSchedule) -> str:
+    """The device-side Python of the emitter Script node (runs on LEON_CSS; see module docstring).
+
+    Globals provided by depthai on the device: ``node`` (inputs ``frame`` and ``config``) and
+    ``Device``.  The table is ``"<dot,...>;<flood,...>;<lead>"`` text, also the format of the
+    messages on ``config``; intensities are only sent when they change.
+    """
+    return f"""
+def parse(text):
+    parts = text.split(';')
+    return [float(v) for v in parts[0].split(',')], [float(v) for v in parts[1].split(',')], int(parts[2])
+
+dot, flood, lead = parse({_config_text(emitters)!r})
+last = None
+while True:
+    cfg = node.io['config'].tryGet()
+    if cfg is not None:
+        dot, flood, lead = parse(bytes(cfg.getData()).decode())
+    frame = node.io['frame'].get()
+    pos = (frame.getSequenceNum() + lead) % len(dot)
+    want = (dot[pos], flood[pos])
+    if want != last:
+        Device.setIrLaserDotProjectorIntensity(want[0])
+        Device.setIrFloodLightIntensity(want[1])
+        last = want
+"""
+
+
+def emitter_script_node(pipeline: Any, tick: Any, emitters: EmitterSchedule) -> tuple[Any, Any]:
+    """Create the emitter Script node on the device, link ``tick`` (the left camera output) to its
+    ``frame`` input; returns (script node, host input queue of its ``config`` input)."""
+    import depthai as dai
+
+    script = pipeline.create(dai.node.Script)
+    script.setProcessor(dai.ProcessorType.LEON_CSS)
+    script.setScript(emitter_script(emitters), "edge-emitters")
+    frame_in = script.inputs["frame"]
+    frame_in.setBlocking(False)
+    frame_in.setMaxSize(1)
+    tick.link(frame_in)
+    config_queue = script.inputs["config"].createInputQueue(maxSize=4, blocking=False)
+    return script, config_queue
+
+
+def config_buffer(emitters: EmitterSchedule) -> Any:
+    """A `dai.Buffer` holding a new emitter table for the Script node's ``config`` input."""
+    import depthai as dai
+
+    buf = dai.Buffer()
+    buf.setData(list(_config_text(emitters).encode()))
+    return buf
 
 
 def camera_output(pipeline: Any, width: int, height: int, fps: float) -> Any:
@@ -378,16 +457,18 @@ class OakSensor:
     pipeline: a depthai pipeline to use (default: ``dai.Pipeline()`` with the implicit device,
         created in `start`); output_factory(pipeline) -> node output (mono, default `camera_output`)
         or (left, right) outputs (stereo, default `stereo_outputs`);
-    emitter: object with the two depthai emitter setters (default: the pipeline's device).
+    emitter: object with the two depthai emitter setters (default: the pipeline's device; given, the
+        host switches the emitters).  dot_intensity, flood_intensity, lead_frames,
+        emitter_control ("script" | "host"): default from the profile's ``[oak]`` table.
     pair_window, max_skew_ns: `StereoPairer` settings (default skew: half a frame period).
     max_frames: end the stream (EndOfStream) after this many frames.
     """
 
     def __init__(self, profile, *, stereo: bool | None = None, pipeline: Any = None,
                  output_factory: Callable[[Any], Any] | None = None,
-                 emitter: Any = None, dot_intensity: float = 0.8, flood_intensity: float = 0.0,
-                 lead_frames: int = 2, max_frames: int | None = None, rectify: bool = True,
-                 pair_window: int = 4, max_skew_ns: int | None = None) -> None:
+                 emitter: Any = None, dot_intensity: float | None = None, flood_intensity: float | None = None,
+                 lead_frames: int | None = None, max_frames: int | None = None, rectify: bool = True,
+                 pair_window: int = 4, max_skew_ns: int | None = None, emitter_control: str | None = None) -> None:
         from edge.runtime.pipeline import profile_layout, stack_layout
 
         n, L = stack_layout(profile)
@@ -404,8 +485,20 @@ class OakSensor:
             n_code_frames=n, source_length=L, metadata=meta, layout=layout)
         self._schedule = self.info.schedule
         self.numbering = StackNumbering(self._schedule)
-        self.emitters = EmitterSchedule(self._schedule, profile.code.source or "1", dot_intensity,
-                                        flood_intensity, lead_frames)
+        oak = profile.oak
+        self.emitters = EmitterSchedule(
+            self._schedule, profile.code.source or "1",
+            oak.dot_intensity if dot_intensity is None else dot_intensity,
+            oak.flood_intensity if flood_intensity is None else flood_intensity,
+            oak.lead_frames if lead_frames is None else lead_frames)
+        self.emitter_control = emitter_control or oak.emitter_control
+        if self.emitter_control not in ("script", "host"):
+            raise ValueError(f"emitter_control must be 'script' or 'host', got {self.emitter_control!r}")
+        self.emitters_on_device = False  # True once the Script node switches them (start with a device)
+        self._script_config = None
+        self._device = None
+        self._last_exposure_us: float | None = None
+        self._last_iso: int | None = None
         if max_skew_ns is None and cam.rate_hz > 0:
             max_skew_ns = int(0.5e9 / cam.rate_hz)
         self.pairer = StereoPairer(window=pair_window, max_skew_ns=max_skew_ns)
@@ -444,13 +537,21 @@ class OakSensor:
             named = {"mono": outputs}
         self._queues = {k: o.createOutputQueue(maxSize=64, blocking=False) for k, o in named.items()}
         device = self._pipeline.getDefaultDevice()
+        self._device = device
         if device is not None:
             self._read_calibration(device)
+            if self.emitter_control == "script" and self._emitter is None:
+                tick = named["left"] if self.stereo else named["mono"]
+                _, self._script_config = emitter_script_node(self._pipeline, tick, self.emitters)
+                self.emitters_on_device = True
+                self.numbering.seq0 = 0  # absolute positions: the device computes seq % frames_per_stack
+                self.info.metadata["emitter_control"] = "device Script node"
         self._clock_offset_ns = time.time_ns() - time.monotonic_ns()
         self._pipeline.start()
         if self._emitter is None:
             self._emitter = device if device is not None else self._pipeline.getDefaultDevice()
-        self._set_emitters(0)
+        if not self.emitters_on_device:
+            self._set_emitters(0)
 
     def _read_calibration(self, device: Any) -> None:
         """Device calibration -> `device_geometry` and metadata (stereo profiles)."""
@@ -490,8 +591,9 @@ class OakSensor:
         self._emitter.setIrFloodLightIntensity(flood)
 
     def _saw_sequence(self, sequence: int) -> None:
-        """A frame with ``sequence`` arrived: set the emitters ``lead_frames`` ahead of the newest one."""
-        if self._commanded is not None and sequence <= self._commanded:
+        """A frame with ``sequence`` arrived: set the emitters ``lead_frames`` ahead of the newest one
+        (host control only; the Script node does it on the device)."""
+        if self.emitters_on_device or (self._commanded is not None and sequence <= self._commanded):
             return
         self._commanded = sequence
         if self.numbering.seq0 is None:
@@ -520,6 +622,7 @@ class OakSensor:
                 raise EndOfStream()
             return None
         self._saw_sequence(int(msg.getSequenceNum()))
+        self._note_exposure(msg)
         stack, projector_frame = self.numbering.assign(msg.getSequenceNum())
         return self._emit(frame_from_imgframe(msg, projector_frame=projector_frame, stack=stack,
                                               clock_offset_ns=self._clock_offset_ns))
@@ -542,6 +645,7 @@ class OakSensor:
 
     def _convert_ready(self) -> None:
         for left, right in self.pairer.pop_ready():
+            self._note_exposure(left)
             stack, projector_frame = self.numbering.assign(left.getSequenceNum())
             self._ready.append(stereo_frame_from_imgframes(left, right, projector_frame=projector_frame, stack=stack,
                                                            clock_offset_ns=self._clock_offset_ns))
@@ -560,6 +664,58 @@ class OakSensor:
             if remaining <= 0:
                 return None
         return self._emit(self._ready.popleft())
+
+    def _note_exposure(self, msg: Any) -> None:
+        try:
+            self._last_exposure_us = msg.getExposureTime() / _US
+            self._last_iso = int(msg.getSensitivity())
+        except Exception:  # host-made frames may lack them
+            pass
+
+    def apply_settings(self, oak: Any) -> None:
+        """Use new ``[oak]`` settings (dot_intensity, flood_intensity, lead_frames) while running: a new
+        `EmitterSchedule`; with the Script node, its table is sent to the device.  emitter_control
+        cannot change while running (ValueError)."""
+        if oak.emitter_control != self.emitter_control:
+            raise ValueError(f"oak.emitter_control cannot change while running (is {self.emitter_control!r})")
+        emitters = EmitterSchedule(self._schedule, self.profile.code.source or "1", oak.dot_intensity,
+                                   oak.flood_intensity, oak.lead_frames)
+        with self._lock:
+            self.emitters = emitters
+            if self._script_config is not None:
+                self._script_config.send(config_buffer(emitters))
+
+    def device_status(self) -> dict[str, Any]:
+        """What users expect of a depth camera's status (see module docstring); keys whose device
+        call failed or that need a device are None."""
+        import depthai as dai
+
+        e = self.emitters
+        out: dict[str, Any] = {
+            "serial": self.info.metadata.get("device_id"), "product": None, "depthai_version": dai.__version__,
+            "bootloader_version": None, "usb_speed": None, "temperature_c": None,
+            "cpu_css_percent": None, "cpu_mss_percent": None,
+            "dot_intensity": e.dot_intensity, "flood_intensity": e.flood_intensity, "lead_frames": e.lead_frames,
+            "emitter_control": "device script" if self.emitters_on_device else "host",
+            "exposure_us": self._last_exposure_us, "iso": self._last_iso,
+        }
+        d = self._device
+        if d is None:
+            return out
+
+        def ask(key: str, fn: Callable[[], Any]) -> None:
+            try:
+                out[key] = fn()
+            except Exception:
+                pass
+
+        ask("product", lambda: str(d.getProductName()))
+        ask("bootloader_version", lambda: str(d.getBootloaderVersion()))
+        ask("usb_speed", lambda: str(d.getUsbSpeed()).split(".")[-1])
+        ask("temperature_c", lambda: round(float(d.getChipTemperature().average), 2))
+        ask("cpu_css_percent", lambda: round(100.0 * float(d.getLeonCssCpuUsage().average), 1))
+        ask("cpu_mss_percent", lambda: round(100.0 * float(d.getLeonMssCpuUsage().average), 1))
+        return out
 
     def stats(self) -> dict[str, int]:
         """Frames delivered and (stereo) the pairing counters (`PairCounters`)."""

@@ -1,0 +1,205 @@
+"""ROS 2 over rmw_zenoh: what edge publishes, checked with independent parts.
+
+* type hashes against rosbags' REP 2016 implementation and the published hash of
+  sensor_msgs/msg/Image (rmw_zenoh's design document / a Jazzy install);
+* CDR payloads decoded by rosbags' deserialiser (not edge's code);
+* key expressions and liveliness tokens spelled out from rmw_zenoh's design document, seen by a
+  plain zenoh client through an in-process zenoh router (standing in for rmw_zenohd);
+* `edge run --ros` connects to the router instead of listening on 7447.
+"""
+
+from __future__ import annotations
+
+import socket
+import struct
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from _service_helpers import NumpyPipeline, load_test_profile
+
+zenoh = pytest.importorskip("zenoh")
+rosbags_typesys = pytest.importorskip("rosbags.typesys")
+
+IMAGE_HASH = "RIHS01_d31d41a9a4c4bc8eae9be757b0beed306564f7526c88ea6a4588fb9582527d47"
+TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg/PointCloud2")
+
+
+def _store():
+    return rosbags_typesys.get_typestore(rosbags_typesys.Stores.ROS2_JAZZY)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _conf(mode, listen=(), connect=()):
+    import json
+
+    c = zenoh.Config()
+    c.insert_json5("mode", json.dumps(mode))
+    c.insert_json5("listen/endpoints", json.dumps(list(listen)))
+    c.insert_json5("connect/endpoints", json.dumps(list(connect)))
+    c.insert_json5("scouting/multicast/enabled", "false")
+    return c
+
+
+def test_type_hashes_match_rosbags_and_the_published_image_hash():
+    from edge.io.ros import type_hash
+
+    store = _store()
+    for t in TYPES:
+        assert type_hash(t) == store.hash_rihs01(t), t
+    assert type_hash("sensor_msgs/msg/Image") == IMAGE_HASH
+
+
+def test_cdr_matches_rosbags_bytes_and_decodes():
+    from edge.io import ros
+
+    store = _store()
+    depth = (np.arange(12, dtype=np.uint16) * 300).reshape(3, 4)
+    msg = ros.image_message(depth, timestamp_ns=1_700_000_000_123_456_789, frame_id="cam_optical_frame")
+    data = ros.serialize_cdr("sensor_msgs/msg/Image", msg)
+    assert data[:4] == b"\x00\x01\x00\x00"  # CDR little endian encapsulation
+    img = store.deserialize_cdr(data, "sensor_msgs/msg/Image")
+    assert (img.header.stamp.sec, img.header.stamp.nanosec) == (1_700_000_000, 123_456_789)
+    assert img.encoding == "16UC1" and img.step == 8 and img.is_bigendian == 0
+    assert np.array_equal(img.data.view("<u2").reshape(3, 4), depth)
+    # byte-identical to rosbags' own serialiser
+    assert store.serialize_cdr(img, "sensor_msgs/msg/Image") == data
+    k = [500.0, 0, 320, 0, 500, 240, 0, 0, 1]
+    info = ros.camera_info_message(k, 640, 480, timestamp_ns=5, frame_id="f")
+    data = ros.serialize_cdr("sensor_msgs/msg/CameraInfo", info)
+    ci = store.deserialize_cdr(data, "sensor_msgs/msg/CameraInfo")
+    assert store.serialize_cdr(ci, "sensor_msgs/msg/CameraInfo") == data
+    assert list(ci.k) == k and list(ci.p) == [500, 0, 320, 0, 0, 500, 240, 0, 0, 0, 1, 0]
+    pts = np.random.default_rng(0).normal(size=(7, 3)).astype(np.float32)
+    data = ros.serialize_cdr("sensor_msgs/msg/PointCloud2", ros.point_cloud2_message(pts, timestamp_ns=5, frame_id="f"))
+    pc = store.deserialize_cdr(data, "sensor_msgs/msg/PointCloud2")
+    assert store.serialize_cdr(pc, "sensor_msgs/msg/PointCloud2") == data
+    assert [(f.name, f.offset, f.datatype, f.count) for f in pc.fields] == [("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1)]
+    assert np.array_equal(pc.data.view("<f4").reshape(-1, 3), pts)
+
+
+def test_ros_names_and_domain():
+    from edge.io.ros import domain_id_from_env, frame_ids, ros_name
+
+    assert ros_name("sim-dlp") == "sim_dlp" and ros_name("3d-cam") == "_3d_cam"
+    assert frame_ids("oak-d-pro")["optical"] == "oak_d_pro_optical_frame"
+    assert domain_id_from_env({}) == 0 and domain_id_from_env({"ROS_DOMAIN_ID": "7"}) == 7
+    with pytest.raises(ValueError, match="ROS_DOMAIN_ID"):
+        domain_id_from_env({"ROS_DOMAIN_ID": "x"})
+
+
+def test_service_publishes_ros2_topics_through_a_router():
+    """A service in ROS mode, an in-process zenoh router (rmw_zenohd's role) and a plain zenoh
+    client: the client lists the liveliness tokens and decodes one sample of every topic."""
+    from edge.profiles import apply_update
+    from edge.runtime.publish import ZenohSink
+    from edge.runtime.ros_sink import RosSink
+    from edge.runtime.service import Service
+    from edge.sensors.sim import SimSensor
+
+    store = _store()
+    router_ep = f"tcp/127.0.0.1:{free_port()}"
+    router = zenoh.open(_conf("router", listen=[router_ep]))
+    client = zenoh.open(_conf("client", connect=[router_ep]))
+    try:
+        profile = apply_update(load_test_profile(), {
+            "zenoh": {"listen": [f"tcp/127.0.0.1:{free_port()}"], "connect": [router_ep]},
+            "ros": {"enabled": True, "router": router_ep}})
+        # keys spelled out from rmw_zenoh's design document (domain 3 from ROS_DOMAIN_ID)
+        image_t = f"sensor_msgs::msg::dds_::Image_/{IMAGE_HASH}"
+        info_t = f"sensor_msgs::msg::dds_::CameraInfo_/{store.hash_rihs01('sensor_msgs/msg/CameraInfo')}"
+        cloud_t = f"sensor_msgs::msg::dds_::PointCloud2_/{store.hash_rihs01('sensor_msgs/msg/PointCloud2')}"
+        keys = {"depth": f"3/test_small/depth/image_rect_raw/{image_t}",
+                "depth_info": f"3/test_small/depth/camera_info/{info_t}",
+                "confidence": f"3/test_small/confidence/image_rect_raw/{image_t}",
+                "points": f"3/test_small/depth/points/{cloud_t}"}
+        got: dict[str, list] = {k: [] for k in keys}
+        lock = threading.Lock()
+
+        def on(leaf):
+            def cb(sample):
+                with lock:
+                    got[leaf].append((sample.payload.to_bytes(), sample.attachment.to_bytes()))
+            return cb
+
+        subs = [client.declare_subscriber(key, on(leaf)) for leaf, key in keys.items()]
+        service = Service(profile, SimSensor(profile, poses=2), pipeline_factory=NumpyPipeline)
+        zsink = ZenohSink(profile, service)
+        rsink = RosSink(profile, session=zsink.publisher.session, environ={"ROS_DOMAIN_ID": "3"})
+        service.sinks.extend([rsink, zsink])
+        runner = threading.Thread(target=service.run, kwargs={"seconds": 60})
+        runner.start()
+        try:
+            deadline = time.time() + 60
+            while time.time() < deadline and not all(len(v) >= 2 for v in got.values()):
+                time.sleep(0.1)
+            tokens = sorted(str(r.ok.key_expr) for r in client.liveliness().get("@ros2_lv/3/**", timeout=5)
+                            if r.ok is not None)
+        finally:
+            service.stop()
+            runner.join(60)
+            for s in subs:
+                s.undeclare()
+        assert all(len(v) >= 2 for v in got.values()), {k: len(v) for k, v in got.items()}
+        zid = str(zsink.publisher.session.info.zid())
+        qos = "::,10:,:,:,,"
+        assert f"@ros2_lv/3/{zid}/0/0/NN/%/%/test_small" in tokens, tokens
+        pubs = [t for t in tokens if "/MP/" in t]
+        assert len(pubs) == 5
+        for topic, typ in [("depth/image_rect_raw", image_t), ("depth/camera_info", info_t),
+                           ("confidence/image_rect_raw", image_t), ("confidence/camera_info", info_t),
+                           ("depth/points", cloud_t)]:
+            mangled = "%test_small%" + topic.replace("/", "%")
+            assert any(t.startswith(f"@ros2_lv/3/{zid}/0/") and t.endswith(f"/MP/%/%/test_small/{mangled}/{typ}/{qos}")
+                       for t in pubs), (topic, pubs)
+        # decode with rosbags; attachments: int64 seq, int64 ns, 16, GID
+        payload, att = got["depth"][-1]
+        img = store.deserialize_cdr(payload, "sensor_msgs/msg/Image")
+        assert (img.height, img.width, img.encoding, img.step) == (120, 160, "16UC1", 320)
+        assert img.header.frame_id == "test_small_optical_frame"
+        depth = img.data.view("<u2").reshape(120, 160)
+        assert np.count_nonzero(depth) > 0.5 * depth.size
+        seq, ts, n = struct.unpack_from("<qqB", att)
+        assert len(att) == 33 and n == 16 and seq >= 1 and abs(ts - time.time_ns()) < 120e9
+        seqs = [struct.unpack_from("<q", a)[0] for _, a in got["depth"]]
+        assert seqs == sorted(seqs) and len(set(seqs)) == len(seqs)
+        gids = {a[17:] for leaf in got for _, a in got[leaf]}
+        assert len(gids) == 4  # one GID per publisher
+        info = store.deserialize_cdr(got["depth_info"][-1][0], "sensor_msgs/msg/CameraInfo")
+        g = profile.geometry
+        assert list(info.k) == [g.focal_px, 0, g.cx_camera, 0, g.focal_px, g.cy, 0, 0, 1]
+        assert (info.width, info.height, info.header.frame_id) == (160, 120, "test_small_optical_frame")
+        conf = store.deserialize_cdr(got["confidence"][-1][0], "sensor_msgs/msg/Image")
+        assert conf.encoding == "mono8" and conf.step == 160
+        cloud = store.deserialize_cdr(got["points"][-1][0], "sensor_msgs/msg/PointCloud2")
+        xyz = cloud.data.view("<f4").reshape(-1, 3)
+        assert cloud.point_step == 12 and cloud.width == xyz.shape[0] > 1000 and cloud.is_dense
+        assert np.all(xyz[:, 2] > 0) and np.all(np.isfinite(xyz))
+        # tokens go away with the service
+        left = [r for r in client.liveliness().get("@ros2_lv/3/**", timeout=2) if r.ok is not None]
+        assert left == []
+    finally:
+        client.close()
+        router.close()
+
+
+def test_run_ros_flag_connects_to_the_router_and_defaults_avoid_7447():
+    from argparse import Namespace
+
+    from edge.commands.run import load_run_profile
+    from edge.profiles import load_profile
+
+    for name in ("sim-dlp", "oak-d-pro", "event-dots", "light-curtain"):
+        assert not any(ep.endswith(":7447") for ep in load_profile(name).zenoh.listen), name
+    p = load_run_profile(Namespace(profile="sim-dlp", listen=None, connect=None, ros=True))
+    assert p.ros.enabled and "tcp/localhost:7447" in p.zenoh.connect
+    assert not any(ep.endswith(":7447") for ep in p.zenoh.listen)
+    p = load_run_profile(Namespace(profile="sim-dlp", listen=None, connect=None, ros=False))
+    assert not p.ros.enabled and p.zenoh.connect == ()
