@@ -81,7 +81,10 @@ def _matrix(fs: cv2.FileStorage, path: str, names: tuple[str, ...]) -> np.ndarra
     for name in names:
         node = fs.getNode(name)
         if not node.empty():
-            m = node.mat()
+            try:
+                m = node.mat() if node.isMap() else None
+            except cv2.error:
+                m = None
             if m is None:
                 raise ValueError(f"{path}: expected {name} to be an OpenCV matrix, got another node type")
             return np.asarray(m, dtype=np.float64)
@@ -101,7 +104,7 @@ def read_calibration(path: str | os.PathLike) -> ProcamCalibration:
         raise FileNotFoundError(f"calibration file not found: {p}")
     try:
         fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
-    except cv2.error:
+    except (cv2.error, SystemError):  # the bindings raise SystemError for some unparsable files
         fs = None
     if fs is None or not fs.isOpened():
         raise ValueError(f"{p}: expected an OpenCV FileStorage file (XML/YAML/JSON), could not parse it")
@@ -112,12 +115,12 @@ def read_calibration(path: str | os.PathLike) -> ProcamCalibration:
         proj_dist = _matrix(fs, str(p), ("proj_dist",)).ravel()
         rot = _matrix(fs, str(p), ("roration", "rotation"))
         t = _matrix(fs, str(p), ("translation",)).ravel()
-        shape_node = fs.getNode("img_shape")
         cam_size = None
-        if not shape_node.empty() and shape_node.mat() is not None:
-            hw = shape_node.mat().ravel()
-            if hw.size == 2:
-                cam_size = (int(hw[1]), int(hw[0]))
+        if not fs.getNode("img_shape").empty():
+            hw = _matrix(fs, str(p), ("img_shape",)).ravel()
+            if hw.size != 2:
+                raise ValueError(f"{p}: expected img_shape to hold (height, width), got {hw.size} values")
+            cam_size = (int(hw[1]), int(hw[0]))
         rms_node = fs.getNode("rms")
         rms = float(rms_node.real()) if not rms_node.empty() and rms_node.isReal() else None
     finally:
