@@ -35,7 +35,7 @@ MAP_INVALID = 65535
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("decode-images", help="decode structured-light captures to column/row maps, depth and PLY",
-                              description=__doc__.split("\n\n")[1].strip(),
+                              description="\n\n".join(__doc__.split("\n\n")[1:]).strip(),
                               formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("directory", help="directory holding the capture images")
     p.add_argument("--layout", default="auto", choices=LAYOUTS,
