@@ -1,31 +1,65 @@
-"""``edge decode-images DIR --layout opencv-graycode --projector 1024x768 --out col.png``.
+"""``edge decode-images DIR [--calibration FILE --depth depth.png --ply cloud.ply] [--out col.png]``.
 
-Decodes a directory of real captures and writes a colour-mapped column map (invalid pixels
-black) and a confidence map (``<out>_confidence.png`` unless --confidence-out is given).
+Decodes a directory of real captures: projector columns and rows per camera pixel, and with a
+procam calibration (procam-calibration's ``calibration_result.xml``) metric depth and a point
+cloud.  Outputs (each optional):
+
+* ``--out``: colour-mapped column picture (invalid black) and a confidence picture
+  (``<out>_confidence.png`` unless --confidence-out is given).
+* ``--column-map`` / ``--row-map``: uint16 PNG, the projector pixel column / row of each camera
+  pixel (``graycode step * decoded cell``), 65535 = invalid.
+* ``--depth``: uint16 PNG in camera pixels, Z along the camera optical axis in millimetres,
+  0 = invalid (ROS REP 118 16UC1).  Needs --calibration and a layout with columns and rows.
+* ``--ply``: one vertex per pixel with depth, x y z in metres in the camera optical frame
+  (x right, y down, z forward), coloured with the white frame.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from ..decode import METHODS, decode
-from ..decode.layouts import LAYOUTS, load
+from ..decode import METHODS
+from ..decode.layouts import LAYOUTS, decode_axes, load
+from ..decode.procam import DISAGREE_PX, estimate_step, read_calibration, reconstruct
+from ..io.ply import write_ply
 from ._args import parse_size
+
+#: Value of an invalid pixel in the uint16 column / row maps.
+MAP_INVALID = 65535
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    p = subparsers.add_parser("decode-images", help="decode a directory of structured-light captures to a column map",
-                              description=__doc__.splitlines()[0])
+    p = subparsers.add_parser("decode-images", help="decode structured-light captures to column/row maps, depth and PLY",
+                              description="\n\n".join(__doc__.split("\n\n")[1:]).strip(),
+                              formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("directory", help="directory holding the capture images")
-    p.add_argument("--layout", default="opencv-graycode", choices=LAYOUTS, help="file layout of the capture")
-    p.add_argument("--projector", default="1024x768", help="projector size WIDTHxHEIGHT (default 1024x768)")
+    p.add_argument("--layout", default="auto", choices=LAYOUTS,
+                   help="file layout: opencv-graycode (42 images for a 1024x768 grid, file-name order), manifest "
+                        "(DIR/manifest.json from `edge patterns write`), auto (default: manifest if DIR has one)")
+    p.add_argument("--manifest", default=None, help="manifest.json to use instead of DIR/manifest.json (implies --layout manifest)")
+    p.add_argument("--projector", default="1024x768",
+                   help="opencv-graycode: the Gray-code grid WIDTHxHEIGHT in code cells, i.e. projector pixels / "
+                        "--graycode-step (default 1024x768)")
     p.add_argument("--method", default="soft", choices=METHODS, help="decoder (default soft)")
-    p.add_argument("--out", required=True, help="PNG for the colour-mapped column map")
-    p.add_argument("--confidence-out", default=None, help="PNG for the confidence map (default <out>_confidence.png)")
+    p.add_argument("--out", default=None, help="PNG for the colour-mapped column picture")
+    p.add_argument("--confidence-out", default=None, help="PNG for the confidence picture (default <out>_confidence.png with --out)")
+    p.add_argument("--column-map", default=None, help="uint16 PNG of the projector column per pixel (65535 = invalid)")
+    p.add_argument("--row-map", default=None, help="uint16 PNG of the projector row per pixel (65535 = invalid)")
+    p.add_argument("--calibration", default=None,
+                   help="OpenCV FileStorage procam calibration (cam_int, cam_dist, proj_int, proj_dist, roration or "
+                        "rotation, translation in mm), as procam-calibration's calibrate.py writes it")
+    p.add_argument("--graycode-step", type=int, default=None,
+                   help="projector pixels per code cell (procam-calibration's graycode_step). Default: the manifest's "
+                        "stripe; else, with --calibration, the step 1..8 that best fits the calibration (printed); else 1")
+    p.add_argument("--max-error", type=float, default=None,
+                   help="drop depth where the projector reprojection error exceeds this many pixels (default max(3, 2*step))")
+    p.add_argument("--depth", default=None, help="uint16 PNG depth in mm along the camera axis, 0 = invalid (needs --calibration)")
+    p.add_argument("--ply", default=None, help="PLY point cloud in metres, camera optical frame (needs --calibration)")
     p.set_defaults(func=run)
 
 
@@ -42,17 +76,108 @@ def confidence_image(confidence: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(confidence * 255.0), 0, 255).astype(np.uint8)
 
 
+def pixel_map(cells: np.ndarray, step: int) -> np.ndarray:
+    """(H, W) int cells (-1 invalid) -> (H, W) uint16 projector pixels ``step * cell``, `MAP_INVALID` invalid."""
+    px = cells.astype(np.int64) * int(step)
+    if px.size and px.max() >= MAP_INVALID:
+        raise ValueError(f"--graycode-step {step}: projector pixels up to {int(px.max())} do not fit a uint16 map")
+    return np.where(cells >= 0, px, MAP_INVALID).astype(np.uint16)
+
+
+def _imwrite(path: str, image: np.ndarray, option: str) -> None:
+    ok = False
+    try:
+        ok = cv2.imwrite(path, image)
+    except cv2.error:
+        ok = False
+    if not ok:
+        raise ValueError(f"{option}: expected a writable PNG path, got {path}")
+
+
+def _warn(text: str) -> None:
+    print(f"edge decode-images: warning: {text}", file=sys.stderr)
+
+
 def run(args: argparse.Namespace) -> int:
     projector = parse_size(args.projector, option="--projector", minimum=2)
-    cap = load(args.directory, args.layout, projector)
-    d = decode(cap.frames, cap.white, cap.black, cap.code, method=args.method, inverse=cap.inverse,
-               columns=cap.columns)
-    out = Path(args.out)
-    conf_out = Path(args.confidence_out) if args.confidence_out else out.with_name(out.stem + "_confidence.png")
-    if not cv2.imwrite(str(out), column_image(d.column, cap.columns)):
-        raise ValueError(f"--out: expected a writable PNG path, got {out}")
-    if not cv2.imwrite(str(conf_out), confidence_image(d.confidence)):
-        raise ValueError(f"--confidence-out: expected a writable PNG path, got {conf_out}")
-    print(f"decoded {d.valid.mean() * 100:.2f}% of {d.valid.size} pixels ({args.method}); "
-          f"wrote {out} and {conf_out}")
+    if args.graycode_step is not None and args.graycode_step < 1:
+        raise ValueError(f"--graycode-step: expected a positive integer, got {args.graycode_step}")
+    geometric = args.depth is not None or args.ply is not None
+    if geometric and args.calibration is None:
+        raise ValueError("--depth / --ply: expected --calibration FILE (a procam calibration_result.xml)")
+    calib = read_calibration(args.calibration) if args.calibration else None
+    layout = "manifest" if args.manifest is not None and args.layout == "auto" else args.layout
+    cap = load(args.directory, layout, projector, manifest=args.manifest)
+    if calib is not None and calib.cam_size is not None and calib.cam_size != (cap.white.shape[1], cap.white.shape[0]):
+        raise ValueError(f"--calibration: calibrated for {calib.cam_size[0]}x{calib.cam_size[1]} camera images, "
+                         f"the capture is {cap.white.shape[1]}x{cap.white.shape[0]}")
+    need_rows = geometric or args.row_map is not None or calib is not None
+    axes = ("columns", "rows") if need_rows else ("columns",)
+    dec = decode_axes(cap, axes, method=args.method)
+    if geometric and not {"columns", "rows"} <= set(dec):
+        raise ValueError(f"--depth / --ply: expected a capture that codes both projector columns and rows, "
+                         f"{args.directory} codes only {', '.join(dec) or 'nothing'} "
+                         f"(write patterns with --orientation both)")
+    for option, axis in (("--out", "columns"), ("--column-map", "columns"), ("--row-map", "rows")):
+        if getattr(args, option[2:].replace("-", "_")) is not None and axis not in dec:
+            raise ValueError(f"{option}: the capture codes no projector {axis}")
+    col, row = dec.get("columns"), dec.get("rows")
+    parts = [f"columns {col.valid.mean() * 100:.2f}%" if col is not None else None,
+             f"rows {row.valid.mean() * 100:.2f}%" if row is not None else None]
+    print(f"decoded {', '.join(p for p in parts if p)} of {cap.white.size} pixels ({args.method}, layout {cap.layout})")
+
+    step = args.graycode_step or cap.stripe
+    if calib is not None and col is not None and row is not None:
+        best, errors = estimate_step(col.column, row.column, calib)
+        tried = ", ".join(f"{s}: {e:.1f} px" for s, e in errors.items() if np.isfinite(e))
+        behind = [str(s) for s, e in errors.items() if not np.isfinite(e)]
+        if behind:
+            tried += f"; step {', '.join(behind)}: most points behind a device"
+        if step is None:
+            step = best
+            print(f"graycode step {step}, the step that fits the calibration best (median projector "
+                  f"reprojection error per step {tried})")
+        if errors.get(step, np.inf) > DISAGREE_PX:
+            hint = (f"; --graycode-step {best} gives {errors[best]:.1f} px" if best != step and errors[best] <= DISAGREE_PX
+                    else "; no step 1..8 fits: is this the calibration of this projector-camera pair?")
+            _warn(f"the calibration and graycode step {step} disagree: median projector reprojection error "
+                  f"{errors.get(step, float('nan')):.1f} px (more than {DISAGREE_PX:g} px){hint}")
+    step = step or 1
+
+    written: list[str] = []
+    if args.out is not None:
+        _imwrite(args.out, column_image(col.column, cap.columns), "--out")
+        out = Path(args.out)
+        conf_out = args.confidence_out or str(out.with_name(out.stem + "_confidence.png"))
+        _imwrite(conf_out, confidence_image(col.confidence), "--confidence-out")
+        written += [args.out, conf_out]
+    elif args.confidence_out is not None and col is not None:
+        _imwrite(args.confidence_out, confidence_image(col.confidence), "--confidence-out")
+        written.append(args.confidence_out)
+    if args.column_map is not None:
+        _imwrite(args.column_map, pixel_map(col.column, step), "--column-map")
+        written.append(args.column_map)
+    if args.row_map is not None:
+        _imwrite(args.row_map, pixel_map(row.column, step), "--row-map")
+        written.append(args.row_map)
+    if calib is not None and col is not None and row is not None:
+        rec = reconstruct(col.column, row.column, calib, step, args.max_error)
+        z = rec.depth[rec.mask]
+        zr = f", Z {z.min()}..{z.max()} mm (median {int(np.median(z))})" if z.size else ""
+        print(f"triangulated {rec.mask.sum()} pixels ({rec.mask.mean() * 100:.2f}%) with graycode step {step}: "
+              f"median projector reprojection error {rec.median_error:.2f} px, median ray gap {rec.median_gap:.2f} mm, "
+              f"{rec.rejected} of {rec.decoded} decoded pixels dropped (error > {rec.max_error:g} px){zr}")
+        if args.depth is not None:
+            _imwrite(args.depth, rec.depth, "--depth")
+            written.append(args.depth)
+        if args.ply is not None:
+            grey = cap.white[rec.mask]
+            if grey.dtype != np.uint8:
+                grey = (grey.astype(np.float64) * (255.0 / max(int(cap.white.max()), 1))).astype(np.uint8)
+            try:
+                write_ply(args.ply, rec.points / 1000.0, colors=grey)
+            except OSError as exc:
+                raise ValueError(f"--ply: expected a writable path, got {args.ply} ({exc.strerror})") from None
+            written.append(args.ply)
+    print(f"wrote {', '.join(written)}" if written else "wrote nothing (give --out, --column-map, --row-map, --depth or --ply)")
     return 0
