@@ -97,7 +97,7 @@ def test_patterns_write_opencv_rejects_edge_options(tmp_path, capsys):
 def test_edge_code_manifest_round_trip_through_the_simulator(tmp_path, code, orientation, inverse, capsys):
     """Render a layout, "capture" its PNG frames with the simulator, write the captures as PNG and
     decode them from the files; the decoded columns (and rows) must be the scene's."""
-    scene = make_scene("tilted-plane", 320, 240, seed=3)
+    scene = make_scene("flying", 320, 240, seed=3)  # occlusions: about 9 % of the pixels unlit
     pw = int(scene.geometry.projector_width)
     pats = tmp_path / "pats"
     argv = ["patterns", "write", "--code", code, "--size", f"{pw}x{scene.height}", "--orientation", orientation]

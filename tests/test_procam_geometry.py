@@ -128,3 +128,13 @@ def test_depth_needs_calibration_and_both_axes(rig, tmp_path, capsys):
     assert main(["patterns", "write", "--code", "gray-8", "--size", "256x8", str(pats)]) == 0
     assert main(["decode-images", str(pats), "--calibration", str(rig["xml"]), "--ply", str(tmp_path / "c.ply")]) == 2
     assert "calibrated for 160x120 camera images" in capsys.readouterr().err
+
+
+def test_bad_output_paths_are_one_line_errors(rig, tmp_path, capsys):
+    base = ["decode-images", str(rig["cap"]), "--projector", "128x96", "--calibration", str(rig["xml"])]
+    assert main(base + ["--depth", str(tmp_path / "depth.jpg")]) == 2
+    assert "--depth: expected a .png (or .tif) path" in capsys.readouterr().err
+    assert main(base + ["--ply", str(tmp_path / "no" / "such" / "cloud.ply")]) == 2
+    assert "--ply: expected a writable path" in capsys.readouterr().err
+    assert main(base + ["--depth", str(tmp_path / "no" / "such" / "d.png")]) == 2
+    assert "--depth: expected a writable PNG path" in capsys.readouterr().err

@@ -84,7 +84,12 @@ def pixel_map(cells: np.ndarray, step: int) -> np.ndarray:
     return np.where(cells >= 0, px, MAP_INVALID).astype(np.uint16)
 
 
+_SIXTEEN_BIT = (".png", ".tif", ".tiff")
+
+
 def _imwrite(path: str, image: np.ndarray, option: str) -> None:
+    if image.dtype == np.uint16 and Path(path).suffix.lower() not in _SIXTEEN_BIT:
+        raise ValueError(f"{option}: expected a .png (or .tif) path for a 16-bit image, got {path}")
     ok = False
     try:
         ok = cv2.imwrite(path, image)
@@ -102,6 +107,10 @@ def run(args: argparse.Namespace) -> int:
     projector = parse_size(args.projector, option="--projector", minimum=2)
     if args.graycode_step is not None and args.graycode_step < 1:
         raise ValueError(f"--graycode-step: expected a positive integer, got {args.graycode_step}")
+    for option in ("--depth", "--column-map", "--row-map"):
+        path = getattr(args, option[2:].replace("-", "_"))
+        if path is not None and Path(path).suffix.lower() not in _SIXTEEN_BIT:
+            raise ValueError(f"{option}: expected a .png (or .tif) path for a 16-bit image, got {path}")
     geometric = args.depth is not None or args.ply is not None
     if geometric and args.calibration is None:
         raise ValueError("--depth / --ply: expected --calibration FILE (a procam calibration_result.xml)")

@@ -17,6 +17,7 @@ image suffix).  ``auto`` (the CLI default): ``manifest`` when the directory hold
 
 from __future__ import annotations
 
+import glob
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -112,7 +113,7 @@ def _find(directory: Path, name: str) -> Path:
     if exact.is_file():
         return exact
     stem = Path(name).stem
-    matches = sorted(p for p in directory.glob(f"{stem}.*") if p.suffix.lower() in _IMAGE_SUFFIXES)
+    matches = sorted(p for p in directory.glob(f"{glob.escape(stem)}.*") if p.suffix.lower() in _IMAGE_SUFFIXES)
     if len(matches) == 1:
         return matches[0]
     if not matches:

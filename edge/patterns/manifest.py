@@ -107,6 +107,8 @@ def parse_manifest(m: object, where: str = MANIFEST) -> LayoutSpec:
     if fmt != FORMAT:
         raise ValueError(f"{where}: expected format {FORMAT!r}, got {fmt!r}")
     layout = _need(m, "layout", str, where)
+    if layout not in LAYOUTS:
+        raise ValueError(f"{where}: expected layout one of {LAYOUTS}, got {layout!r}")
     width, height = _need(m, "width", int, where), _need(m, "height", int, where)
     stripe = _need(m, "stripe", int, where)
     if width < 1 or height < 1 or stripe < 1:
