@@ -20,8 +20,8 @@ import pytest
 
 from _service_helpers import NumpyPipeline, load_test_profile
 
-zenoh = pytest.importorskip("zenoh")
-rosbags_typesys = pytest.importorskip("rosbags.typesys")
+import rosbags.typesys as rosbags_typesys  # noqa: E402  (test extra)
+import zenoh  # noqa: E402
 
 IMAGE_HASH = "RIHS01_d31d41a9a4c4bc8eae9be757b0beed306564f7526c88ea6a4588fb9582527d47"
 TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg/PointCloud2")
