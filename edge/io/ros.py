@@ -275,7 +275,7 @@ class _CdrWriter:
         self.parts: list[bytes] = []
         self.pos = 0  # offset from the end of the encapsulation header
 
-    def _put(self, b: bytes) -> None:
+    def _put(self, b: Any) -> None:
         self.parts.append(b)
         self.pos += len(b)
 
@@ -298,12 +298,12 @@ class _CdrWriter:
     def array(self, base: str, values: Any, count: int | None) -> None:
         """Primitive array (count = N) or sequence (count None: uint32 length first)."""
         if isinstance(values, (bytes, bytearray, memoryview)) and base in ("uint8", "byte", "char"):
-            data = bytes(values)
+            data = values
             n = len(data)
-        else:
-            arr = np.ascontiguousarray(np.asarray(values), dtype=_NUMPY[base])
+        else:  # no copy for a contiguous array of the right dtype: b"".join reads its buffer
+            arr = np.ascontiguousarray(np.asarray(values), dtype=_NUMPY[base]).reshape(-1)
             n = arr.size
-            data = arr.tobytes()
+            data = memoryview(arr).cast("B") if n else b""
         if count is None:
             self.primitive("uint32", n)
         elif n != count:
@@ -352,7 +352,7 @@ def serialize_cdr(ros_type: str, msg: Mapping[str, Any]) -> bytes:
         raise ValueError(f"expected one of {sorted(MESSAGES)}, got {ros_type!r}")
     w = _CdrWriter()
     _write(w, ros_type, msg)
-    return b"\x00\x01\x00\x00" + b"".join(w.parts)
+    return b"".join([b"\x00\x01\x00\x00", *w.parts])
 
 
 # -- messages edge publishes ---------------------------------------------------------------------
@@ -374,7 +374,7 @@ def image_message(image: np.ndarray, *, timestamp_ns: int, frame_id: str) -> dic
     h, w = image.shape
     return {"header": _header(timestamp_ns, frame_id), "height": h, "width": w,
             "encoding": _IMAGE_ENCODINGS[image.dtype], "is_bigendian": 0, "step": w * image.dtype.itemsize,
-            "data": np.ascontiguousarray(image, dtype=image.dtype.newbyteorder("<")).tobytes()}
+            "data": np.ascontiguousarray(image, dtype=image.dtype.newbyteorder("<")).view(np.uint8).reshape(-1)}
 
 
 def camera_info_message(k: Iterable[float], width: int, height: int, *, timestamp_ns: int,
@@ -401,5 +401,5 @@ def point_cloud2_message(xyz: np.ndarray, *, timestamp_ns: int, frame_id: str) -
     n = xyz.shape[0]
     fields = [{"name": c, "offset": 4 * i, "datatype": _FLOAT32, "count": 1} for i, c in enumerate("xyz")]
     return {"header": _header(timestamp_ns, frame_id), "height": 1, "width": n, "fields": fields,
-            "is_bigendian": False, "point_step": 12, "row_step": 12 * n, "data": xyz.tobytes(),
+            "is_bigendian": False, "point_step": 12, "row_step": 12 * n, "data": xyz.view(np.uint8).reshape(-1),
             "is_dense": True}
