@@ -16,7 +16,9 @@ topic                               type                        content
 ==================================  ==========================  ===============================
 
 Every message has ``header.stamp`` = the time of the stack's last camera frame and ``frame_id``
-``<node>_optical_frame`` (REP 103 / 105; `edge.io.ros.frame_ids`).  QoS: reliable, volatile, keep
+``<name>_optical_frame`` with ``<name>`` the device name with ``-`` -> ``_`` (REP 103 / 105;
+`edge.io.ros.frame_ids`; the same frame id as in recordings and the Foxglove sink, whatever the
+node is called).  QoS: reliable, volatile, keep
 last 10.  The domain is ``ROS_DOMAIN_ID`` (default 0).
 """
 
@@ -78,7 +80,7 @@ class RosSink:
         self.profile = profile
         self.domain_id = ros.domain_id_from_env(os.environ if environ is None else environ)
         self.node = profile.ros.node or ros.ros_name(profile.zenoh.device)
-        self.frame_id = ros.frame_ids(self.node)["optical"]
+        self.frame_id = ros.frame_ids(profile.zenoh.device)["optical"]  # as in recordings and Foxglove
         self._own_session = session is None
         if session is None:
             z = profile.zenoh
