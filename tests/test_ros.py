@@ -203,3 +203,33 @@ def test_run_ros_flag_connects_to_the_router_and_defaults_avoid_7447():
     assert not any(ep.endswith(":7447") for ep in p.zenoh.listen)
     p = load_run_profile(Namespace(profile="sim-dlp", listen=None, connect=None, ros=False))
     assert not p.ros.enabled and p.zenoh.connect == ()
+
+
+def test_edge_run_ros_cli_publishes_through_the_router(tmp_path, capsys):
+    """`edge run --ros` end to end (CLI: profile, sinks, shutdown order) against an in-process router."""
+    from _service_helpers import TEST_PROFILE
+
+    from edge.cli import main
+
+    router_ep = f"tcp/127.0.0.1:{free_port()}"
+    profile = tmp_path / "ros-small.toml"
+    profile.write_text(TEST_PROFILE.read_text() + f'\n[ros]\nrouter = "{router_ep}"\n')
+    router = zenoh.open(_conf("router", listen=[router_ep]))
+    client = zenoh.open(_conf("client", connect=[router_ep]))
+    got = []
+    key = f"0/test_small/depth/image_rect_raw/sensor_msgs::msg::dds_::Image_/{IMAGE_HASH}"
+    sub = client.declare_subscriber(key, lambda s: got.append(s.payload.to_bytes()))
+    try:
+        rc = main(["run", "--profile", str(profile), "--ros", "--stacks", "3", "--quiet",
+                   "--listen", f"tcp/127.0.0.1:{free_port()}"])
+        time.sleep(0.5)
+    finally:
+        sub.undeclare()
+        client.close()
+        router.close()
+    out = capsys.readouterr()
+    assert rc == 0, out
+    assert f"ROS 2 via {router_ep}" in out.out
+    assert len(got) >= 1
+    img = _store().deserialize_cdr(got[-1], "sensor_msgs/msg/Image")
+    assert (img.width, img.height, img.encoding) == (160, 120, "16UC1")
