@@ -57,6 +57,7 @@ __all__ = [
     "image_message",
     "camera_info_message",
     "point_cloud2_message",
+    "tf_message",
     "domain_id_from_env",
     "frame_ids",
     "OPTICAL_ROTATION",
@@ -81,6 +82,13 @@ MESSAGES: dict[str, list[tuple[str, str]]] = {
         ("roi", "sensor_msgs/msg/RegionOfInterest")],
     "sensor_msgs/msg/PointField": [
         ("name", "string"), ("offset", "uint32"), ("datatype", "uint8"), ("count", "uint32")],
+    "geometry_msgs/msg/Vector3": [("x", "float64"), ("y", "float64"), ("z", "float64")],
+    "geometry_msgs/msg/Quaternion": [("x", "float64"), ("y", "float64"), ("z", "float64"), ("w", "float64")],
+    "geometry_msgs/msg/Transform": [("translation", "geometry_msgs/msg/Vector3"),
+                                    ("rotation", "geometry_msgs/msg/Quaternion")],
+    "geometry_msgs/msg/TransformStamped": [("header", "std_msgs/msg/Header"), ("child_frame_id", "string"),
+                                           ("transform", "geometry_msgs/msg/Transform")],
+    "tf2_msgs/msg/TFMessage": [("transforms", "geometry_msgs/msg/TransformStamped[]")],
     "sensor_msgs/msg/PointCloud2": [
         ("header", "std_msgs/msg/Header"), ("height", "uint32"), ("width", "uint32"),
         ("fields", "sensor_msgs/msg/PointField[]"), ("is_bigendian", "bool"), ("point_step", "uint32"),
@@ -403,3 +411,19 @@ def point_cloud2_message(xyz: np.ndarray, *, timestamp_ns: int, frame_id: str) -
     return {"header": _header(timestamp_ns, frame_id), "height": 1, "width": n, "fields": fields,
             "is_bigendian": False, "point_step": 12, "row_step": 12 * n, "data": xyz.view(np.uint8).reshape(-1),
             "is_dense": True}
+
+
+def tf_message(device: str, baseline_m: float, *, timestamp_ns: int) -> dict[str, Any]:
+    """tf2_msgs/msg/TFMessage of a device's frame tree (`frame_ids`): ``<name>_link`` ->
+    ``<name>_optical_frame`` (REP 103 rotation), optical -> ``<name>_projector_optical_frame``
+    (+``baseline_m`` along x)."""
+    ids = frame_ids(device)
+    x, y, z, w = OPTICAL_ROTATION
+
+    def tf(parent: str, child: str, t: tuple[float, float, float], q: tuple[float, float, float, float]):
+        return {"header": _header(timestamp_ns, parent), "child_frame_id": child,
+                "transform": {"translation": dict(zip("xyz", map(float, t))),
+                              "rotation": dict(zip("xyzw", map(float, q)))}}
+
+    return {"transforms": [tf(ids["base"], ids["optical"], (0.0, 0.0, 0.0), (x, y, z, w)),
+                           tf(ids["optical"], ids["projector"], (float(baseline_m), 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))]}
