@@ -75,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
     ros = RosSink(base, session=z.publisher.session, environ={})
     try:
         rows.append((f"+ sl/<device>/points (stride {base.points.stride})", timed([z])))
-        rows.append(("+ ROS 2: Image x2, CameraInfo x2, PointCloud2", timed([z, ros])))
+        rows.append(("+ ROS 2: Image x2, CameraInfo x2, PointCloud2, TF", timed([z, ros])))
         try:
             from edge.runtime.foxglove_sink import FoxgloveSink
 
