@@ -15,8 +15,8 @@ import pytest
 
 from _service_helpers import NumpyPipeline, load_test_profile
 
-pytest.importorskip("foxglove")
-ws_client = pytest.importorskip("websockets.sync.client")
+import foxglove  # noqa: E402,F401  (test extra: foxglove-sdk)
+import websockets.sync.client as ws_client  # noqa: E402  (test extra)
 
 
 def _recv_until(ws, pred, timeout=60.0):

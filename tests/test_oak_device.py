@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-dai = pytest.importorskip("depthai")
+import depthai as dai  # noqa: E402
 
 from _service_helpers import NumpyPipeline, load_test_profile  # noqa: E402
 from test_sensors_oak import FakeMono, _oak_profile  # noqa: E402

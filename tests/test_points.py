@@ -4,6 +4,7 @@ from the CLI (`edge subscribe --ply`, `edge replay --ply`)."""
 
 from __future__ import annotations
 
+import json
 import socket
 import threading
 
@@ -54,7 +55,7 @@ def _record(tmp_path, stacks=3):
     profile = load_test_profile()
     path = tmp_path / "rec.mcap"
     recorder = RecordingThread(path, profile)
-    service = Service(profile, SimSensor(profile, poses=2, max_speed=True), recorder=recorder)
+    service = Service(profile, SimSensor(profile, poses=2), recorder=recorder)
     service.run(stacks=stacks)
     return profile, path
 
@@ -72,9 +73,12 @@ def test_recording_has_points_and_calibration_per_depth_on_one_frame_tree(tmp_pa
 
     profile, path = _record(tmp_path)
     by_topic: dict[str, list] = {}
+    stacks = []  # stack id of every recorded depth map, in order (output_info precedes its depth)
     with open(path, "rb") as f:
         reader = make_reader(f, validate_crcs=True)
         for schema, channel, message in reader.iter_messages():
+            if channel.topic == "/test-small/output_info":
+                stacks.append(json.loads(message.data)["stack"])
             cls = {"foxglove.RawImage": RawImage, "foxglove.PointCloud": PointCloud,
                    "foxglove.CameraCalibration": CameraCalibration,
                    "foxglove.FrameTransforms": FrameTransforms}.get(schema.name if schema else "")
@@ -106,10 +110,14 @@ def test_recording_has_points_and_calibration_per_depth_on_one_frame_tree(tmp_pa
     out = tmp_path / "ply"
     assert main(["replay", str(path), "--ply", str(out)]) == 0
     files = sorted(out.glob("test-small_*.ply"))
-    assert len(files) == len(depth)
-    cloud, grey = read_ply(files[-1])
-    full = depth_to_points(dm, camera_matrix(profile.geometry))
-    assert np.array_equal(cloud, full) and grey is not None and grey.shape == (len(full), 3)
+    assert len(files) >= 2  # every stack replay re-decodes (complete in the file) gets one
+    for file in files:
+        stack = int(file.stem.rsplit("_", 1)[1])
+        _, d = depth[stacks.index(stack)]
+        dm = np.frombuffer(d.data, "<u2").reshape(d.height, d.width)
+        cloud, grey = read_ply(file)
+        full = depth_to_points(dm, camera_matrix(profile.geometry))
+        assert np.array_equal(cloud, full) and grey is not None and grey.shape == (len(full), 3)
 
 
 def test_points_key_and_subscribe_ply(tmp_path, capsys):

@@ -20,11 +20,11 @@ import pytest
 
 from _service_helpers import NumpyPipeline, load_test_profile
 
-zenoh = pytest.importorskip("zenoh")
-rosbags_typesys = pytest.importorskip("rosbags.typesys")
+import rosbags.typesys as rosbags_typesys  # noqa: E402  (test extra)
+import zenoh  # noqa: E402
 
 IMAGE_HASH = "RIHS01_d31d41a9a4c4bc8eae9be757b0beed306564f7526c88ea6a4588fb9582527d47"
-TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg/PointCloud2")
+TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg/PointCloud2", "tf2_msgs/msg/TFMessage")
 
 
 def _store():
@@ -83,6 +83,9 @@ def test_cdr_matches_rosbags_bytes_and_decodes():
     assert store.serialize_cdr(pc, "sensor_msgs/msg/PointCloud2") == data
     assert [(f.name, f.offset, f.datatype, f.count) for f in pc.fields] == [("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1)]
     assert np.array_equal(pc.data.view("<f4").reshape(-1, 3), pts)
+    data = ros.serialize_cdr("tf2_msgs/msg/TFMessage", ros.tf_message("sim-dlp", 0.08, timestamp_ns=7))
+    tf = store.deserialize_cdr(data, "tf2_msgs/msg/TFMessage")
+    assert store.serialize_cdr(tf, "tf2_msgs/msg/TFMessage") == data and len(tf.transforms) == 2
 
 
 def test_ros_names_and_domain():
@@ -116,7 +119,8 @@ def test_service_publishes_ros2_topics_through_a_router():
         image_t = f"sensor_msgs::msg::dds_::Image_/{IMAGE_HASH}"
         info_t = f"sensor_msgs::msg::dds_::CameraInfo_/{store.hash_rihs01('sensor_msgs/msg/CameraInfo')}"
         cloud_t = f"sensor_msgs::msg::dds_::PointCloud2_/{store.hash_rihs01('sensor_msgs/msg/PointCloud2')}"
-        keys = {"depth": f"3/test_small/depth/image_rect_raw/{image_t}",
+        tf_t = f"tf2_msgs::msg::dds_::TFMessage_/{store.hash_rihs01('tf2_msgs/msg/TFMessage')}"
+        keys = {"depth": f"3/test_small/depth/image_rect_raw/{image_t}", "tf": f"3/tf/{tf_t}",
                 "depth_info": f"3/test_small/depth/camera_info/{info_t}",
                 "confidence": f"3/test_small/confidence/image_rect_raw/{image_t}",
                 "points": f"3/test_small/depth/points/{cloud_t}"}
@@ -152,7 +156,8 @@ def test_service_publishes_ros2_topics_through_a_router():
         qos = "::,10:,:,:,,"
         assert f"@ros2_lv/3/{zid}/0/0/NN/%/%/test_small" in tokens, tokens
         pubs = [t for t in tokens if "/MP/" in t]
-        assert len(pubs) == 5
+        assert len(pubs) == 6
+        assert any(t.endswith(f"/MP/%/%/test_small/%tf/{tf_t}/{qos}") for t in pubs), pubs
         for topic, typ in [("depth/image_rect_raw", image_t), ("depth/camera_info", info_t),
                            ("confidence/image_rect_raw", image_t), ("confidence/camera_info", info_t),
                            ("depth/points", cloud_t)]:
@@ -171,7 +176,7 @@ def test_service_publishes_ros2_topics_through_a_router():
         seqs = [struct.unpack_from("<q", a)[0] for _, a in got["depth"]]
         assert seqs == sorted(seqs) and len(set(seqs)) == len(seqs)
         gids = {a[17:] for leaf in got for _, a in got[leaf]}
-        assert len(gids) == 4  # one GID per publisher
+        assert len(gids) == 5  # one GID per publisher
         info = store.deserialize_cdr(got["depth_info"][-1][0], "sensor_msgs/msg/CameraInfo")
         g = profile.geometry
         assert list(info.k) == [g.focal_px, 0, g.cx_camera, 0, g.focal_px, g.cy, 0, 0, 1]
@@ -182,6 +187,13 @@ def test_service_publishes_ros2_topics_through_a_router():
         xyz = cloud.data.view("<f4").reshape(-1, 3)
         assert cloud.point_step == 12 and cloud.width == xyz.shape[0] > 1000 and cloud.is_dense
         assert np.all(xyz[:, 2] > 0) and np.all(np.isfinite(xyz))
+        tfm = store.deserialize_cdr(got["tf"][-1][0], "tf2_msgs/msg/TFMessage")
+        tree = {(t.header.frame_id, t.child_frame_id): t.transform for t in tfm.transforms}
+        assert set(tree) == {("test_small_link", "test_small_optical_frame"),
+                             ("test_small_optical_frame", "test_small_projector_optical_frame")}
+        assert tree[("test_small_optical_frame", "test_small_projector_optical_frame")].translation.x == g.baseline_m
+        q = tree[("test_small_link", "test_small_optical_frame")].rotation
+        assert (q.x, q.y, q.z, q.w) == (-0.5, 0.5, -0.5, 0.5)
         # tokens go away with the service
         left = [r for r in client.liveliness().get("@ros2_lv/3/**", timeout=2) if r.ok is not None]
         assert left == []
@@ -203,3 +215,33 @@ def test_run_ros_flag_connects_to_the_router_and_defaults_avoid_7447():
     assert not any(ep.endswith(":7447") for ep in p.zenoh.listen)
     p = load_run_profile(Namespace(profile="sim-dlp", listen=None, connect=None, ros=False))
     assert not p.ros.enabled and p.zenoh.connect == ()
+
+
+def test_edge_run_ros_cli_publishes_through_the_router(tmp_path, capsys):
+    """`edge run --ros` end to end (CLI: profile, sinks, shutdown order) against an in-process router."""
+    from _service_helpers import TEST_PROFILE
+
+    from edge.cli import main
+
+    router_ep = f"tcp/127.0.0.1:{free_port()}"
+    profile = tmp_path / "ros-small.toml"
+    profile.write_text(TEST_PROFILE.read_text() + f'\n[ros]\nrouter = "{router_ep}"\n')
+    router = zenoh.open(_conf("router", listen=[router_ep]))
+    client = zenoh.open(_conf("client", connect=[router_ep]))
+    got = []
+    key = f"0/test_small/depth/image_rect_raw/sensor_msgs::msg::dds_::Image_/{IMAGE_HASH}"
+    sub = client.declare_subscriber(key, lambda s: got.append(s.payload.to_bytes()))
+    try:
+        rc = main(["run", "--profile", str(profile), "--ros", "--stacks", "3", "--quiet",
+                   "--listen", f"tcp/127.0.0.1:{free_port()}"])
+        time.sleep(0.5)
+    finally:
+        sub.undeclare()
+        client.close()
+        router.close()
+    out = capsys.readouterr()
+    assert rc == 0, out
+    assert f"ROS 2 via {router_ep}" in out.out
+    assert len(got) >= 1
+    img = _store().deserialize_cdr(got[-1], "sensor_msgs/msg/Image")
+    assert (img.width, img.height, img.encoding) == (160, 120, "16UC1")

@@ -97,7 +97,10 @@ class _PlyWriter:
     def __init__(self, directory: str) -> None:
         if os.path.exists(directory) and not os.path.isdir(directory):
             raise ValueError(f"--ply: expected a directory, got the file {directory!r}")
-        os.makedirs(directory, exist_ok=True)
+        try:
+            os.makedirs(directory, exist_ok=True)
+        except OSError as exc:
+            raise ValueError(f"--ply: cannot create the directory {directory!r}: {exc.strerror or exc}") from None
         self.directory = directory
         self.profile = None
         self.written = 0
@@ -109,6 +112,9 @@ class _PlyWriter:
         geometry = result.geometry if result.geometry is not None else self.profile.geometry
         pts = depth_to_points(result.depth_mm, camera_matrix(geometry))
         grey = result.confidence[result.depth_mm > 0]
-        write_ply(os.path.join(self.directory, f"{self.profile.zenoh.device}_{result.stack:06d}.ply"), pts,
-                  colors=grey)
+        path = os.path.join(self.directory, f"{self.profile.zenoh.device}_{result.stack:06d}.ply")
+        try:
+            write_ply(path, pts, colors=grey)
+        except OSError as exc:
+            raise ValueError(f"--ply: cannot write {path!r}: {exc.strerror or exc}") from None
         self.written += 1

@@ -88,7 +88,10 @@ def _run(args: argparse.Namespace) -> int:
         if cloud is None:
             print(f"no point cloud from {args.prefix}/{args.device}/points (is [points] publish off?)")
             return 1
-        write_ply(args.ply, cloud.points)
+        try:
+            write_ply(args.ply, cloud.points)
+        except OSError as exc:
+            raise ValueError(f"could not write PLY to {args.ply!r}: {exc.strerror or exc}") from None
         print(f"wrote {args.ply} ({cloud.points.shape[0]} points, frame {cloud.header.get('frame_id', '')})")
     return 0
 

@@ -57,6 +57,7 @@ __all__ = [
     "image_message",
     "camera_info_message",
     "point_cloud2_message",
+    "tf_message",
     "domain_id_from_env",
     "frame_ids",
     "OPTICAL_ROTATION",
@@ -81,6 +82,13 @@ MESSAGES: dict[str, list[tuple[str, str]]] = {
         ("roi", "sensor_msgs/msg/RegionOfInterest")],
     "sensor_msgs/msg/PointField": [
         ("name", "string"), ("offset", "uint32"), ("datatype", "uint8"), ("count", "uint32")],
+    "geometry_msgs/msg/Vector3": [("x", "float64"), ("y", "float64"), ("z", "float64")],
+    "geometry_msgs/msg/Quaternion": [("x", "float64"), ("y", "float64"), ("z", "float64"), ("w", "float64")],
+    "geometry_msgs/msg/Transform": [("translation", "geometry_msgs/msg/Vector3"),
+                                    ("rotation", "geometry_msgs/msg/Quaternion")],
+    "geometry_msgs/msg/TransformStamped": [("header", "std_msgs/msg/Header"), ("child_frame_id", "string"),
+                                           ("transform", "geometry_msgs/msg/Transform")],
+    "tf2_msgs/msg/TFMessage": [("transforms", "geometry_msgs/msg/TransformStamped[]")],
     "sensor_msgs/msg/PointCloud2": [
         ("header", "std_msgs/msg/Header"), ("height", "uint32"), ("width", "uint32"),
         ("fields", "sensor_msgs/msg/PointField[]"), ("is_bigendian", "bool"), ("point_step", "uint32"),
@@ -275,7 +283,7 @@ class _CdrWriter:
         self.parts: list[bytes] = []
         self.pos = 0  # offset from the end of the encapsulation header
 
-    def _put(self, b: bytes) -> None:
+    def _put(self, b: Any) -> None:
         self.parts.append(b)
         self.pos += len(b)
 
@@ -298,12 +306,12 @@ class _CdrWriter:
     def array(self, base: str, values: Any, count: int | None) -> None:
         """Primitive array (count = N) or sequence (count None: uint32 length first)."""
         if isinstance(values, (bytes, bytearray, memoryview)) and base in ("uint8", "byte", "char"):
-            data = bytes(values)
+            data = values
             n = len(data)
-        else:
-            arr = np.ascontiguousarray(np.asarray(values), dtype=_NUMPY[base])
+        else:  # no copy for a contiguous array of the right dtype: b"".join reads its buffer
+            arr = np.ascontiguousarray(np.asarray(values), dtype=_NUMPY[base]).reshape(-1)
             n = arr.size
-            data = arr.tobytes()
+            data = memoryview(arr).cast("B") if n else b""
         if count is None:
             self.primitive("uint32", n)
         elif n != count:
@@ -352,7 +360,7 @@ def serialize_cdr(ros_type: str, msg: Mapping[str, Any]) -> bytes:
         raise ValueError(f"expected one of {sorted(MESSAGES)}, got {ros_type!r}")
     w = _CdrWriter()
     _write(w, ros_type, msg)
-    return b"\x00\x01\x00\x00" + b"".join(w.parts)
+    return b"".join([b"\x00\x01\x00\x00", *w.parts])
 
 
 # -- messages edge publishes ---------------------------------------------------------------------
@@ -374,7 +382,7 @@ def image_message(image: np.ndarray, *, timestamp_ns: int, frame_id: str) -> dic
     h, w = image.shape
     return {"header": _header(timestamp_ns, frame_id), "height": h, "width": w,
             "encoding": _IMAGE_ENCODINGS[image.dtype], "is_bigendian": 0, "step": w * image.dtype.itemsize,
-            "data": np.ascontiguousarray(image, dtype=image.dtype.newbyteorder("<")).tobytes()}
+            "data": np.ascontiguousarray(image, dtype=image.dtype.newbyteorder("<")).view(np.uint8).reshape(-1)}
 
 
 def camera_info_message(k: Iterable[float], width: int, height: int, *, timestamp_ns: int,
@@ -401,5 +409,21 @@ def point_cloud2_message(xyz: np.ndarray, *, timestamp_ns: int, frame_id: str) -
     n = xyz.shape[0]
     fields = [{"name": c, "offset": 4 * i, "datatype": _FLOAT32, "count": 1} for i, c in enumerate("xyz")]
     return {"header": _header(timestamp_ns, frame_id), "height": 1, "width": n, "fields": fields,
-            "is_bigendian": False, "point_step": 12, "row_step": 12 * n, "data": xyz.tobytes(),
+            "is_bigendian": False, "point_step": 12, "row_step": 12 * n, "data": xyz.view(np.uint8).reshape(-1),
             "is_dense": True}
+
+
+def tf_message(device: str, baseline_m: float, *, timestamp_ns: int) -> dict[str, Any]:
+    """tf2_msgs/msg/TFMessage of a device's frame tree (`frame_ids`): ``<name>_link`` ->
+    ``<name>_optical_frame`` (REP 103 rotation), optical -> ``<name>_projector_optical_frame``
+    (+``baseline_m`` along x)."""
+    ids = frame_ids(device)
+    x, y, z, w = OPTICAL_ROTATION
+
+    def tf(parent: str, child: str, t: tuple[float, float, float], q: tuple[float, float, float, float]):
+        return {"header": _header(timestamp_ns, parent), "child_frame_id": child,
+                "transform": {"translation": dict(zip("xyz", map(float, t))),
+                              "rotation": dict(zip("xyzw", map(float, q)))}}
+
+    return {"transforms": [tf(ids["base"], ids["optical"], (0.0, 0.0, 0.0), (x, y, z, w)),
+                           tf(ids["optical"], ids["projector"], (float(baseline_m), 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))]}

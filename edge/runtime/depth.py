@@ -109,8 +109,8 @@ def depth_to_points(depth_mm: np.ndarray, k: np.ndarray, *, stride: int = 1) -> 
     depth_mm: (H, W) uint16 millimetres, 0 = invalid (skipped).  k: (3, 3) intrinsics (pixels,
     e.g. `camera_matrix`).  stride: use every ``stride``-th row and column (1 = every pixel).
     Returns (N, 3) float32 metres in the camera optical frame (REP 103: x right, y down,
-    z forward), pixel (u, v) -> ``((u - cx) z / fx, (v - cy) z / fy, z)``, valid pixels in
-    row-major order.
+    z forward), pixel (u, v) -> ``(z (u - cx) / fx, z (v - cy) / fy, z)`` (rays in float64, then
+    float32), valid pixels in row-major order.
     """
     depth_mm = np.asarray(depth_mm)
     if depth_mm.ndim != 2 or depth_mm.dtype != np.uint16:
@@ -122,12 +122,14 @@ def depth_to_points(depth_mm: np.ndarray, k: np.ndarray, *, stride: int = 1) -> 
         raise ValueError(f"expected a point stride >= 1, got {stride}")
     s = int(stride)
     d = depth_mm[::s, ::s]
-    v, u = np.nonzero(d)
-    z = d[v, u].astype(np.float32) * np.float32(1e-3)
-    u = (u * s).astype(np.float32)
-    v = (v * s).astype(np.float32)
-    out = np.empty((z.size, 3), dtype=np.float32)
-    out[:, 0] = (u - np.float32(k[0, 2])) * z / np.float32(k[0, 0])
-    out[:, 1] = (v - np.float32(k[1, 2])) * z / np.float32(k[1, 1])
-    out[:, 2] = z
+    valid = d != 0
+    z = d.astype(np.float32) * np.float32(1e-3)
+    # per-column / per-row rays (u - cx) / fx and (v - cy) / fy, then one masked gather per axis
+    rx = ((np.arange(0, depth_mm.shape[1], s, dtype=np.float64) - k[0, 2]) / k[0, 0]).astype(np.float32)
+    ry = ((np.arange(0, depth_mm.shape[0], s, dtype=np.float64) - k[1, 2]) / k[1, 1]).astype(np.float32)
+    zs = z[valid]
+    out = np.empty((zs.size, 3), dtype=np.float32)
+    out[:, 0] = (z * rx[None, :])[valid]
+    out[:, 1] = (z * ry[:, None])[valid]
+    out[:, 2] = zs
     return out

@@ -90,20 +90,26 @@ class FoxgloveSink:
                              rotation=m.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0))])
 
     def on_result(self, result: DepthResult) -> None:
+        """Log the depth map's messages on every channel a client subscribed to (nothing is encoded
+        for a channel without a subscriber)."""
         from .points import result_intrinsics, result_points
 
         m, t = self._m, result.timestamp_ns
         geometry = result.geometry if result.geometry is not None else self.profile.geometry
         h, w = result.depth_mm.shape
-        k = [float(v) for v in result_intrinsics(result, self.profile.geometry).ravel()]
-        self._tf.log(self._transforms(t, geometry.baseline_m), log_time=t)
-        self._calibration.log(m.CameraCalibration(
-            timestamp=self._stamp(t), frame_id=self.frames["optical"], width=w, height=h,
-            distortion_model="plumb_bob", D=[0.0] * 5, K=k, R=[1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0],
-            P=[k[0], k[1], k[2], 0.0, k[3], k[4], k[5], 0.0, 0.0, 0.0, 1.0, 0.0]), log_time=t)
-        self._depth.log(self._image(result.depth_mm, "16UC1", t), log_time=t)
-        self._confidence.log(self._image(result.confidence, "mono8", t), log_time=t)
-        if self.profile.points.publish:
+        if self._tf.has_sinks():
+            self._tf.log(self._transforms(t, geometry.baseline_m), log_time=t)
+        if self._calibration.has_sinks():
+            k = [float(v) for v in result_intrinsics(result, self.profile.geometry).ravel()]
+            self._calibration.log(m.CameraCalibration(
+                timestamp=self._stamp(t), frame_id=self.frames["optical"], width=w, height=h,
+                distortion_model="plumb_bob", D=[0.0] * 5, K=k, R=[1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0],
+                P=[k[0], k[1], k[2], 0.0, k[3], k[4], k[5], 0.0, 0.0, 0.0, 1.0, 0.0]), log_time=t)
+        if self._depth.has_sinks():
+            self._depth.log(self._image(result.depth_mm, "16UC1", t), log_time=t)
+        if self._confidence.has_sinks():
+            self._confidence.log(self._image(result.confidence, "mono8", t), log_time=t)
+        if self.profile.points.publish and self._points.has_sinks():
             pts = result_points(result, self.profile.geometry, self.profile.points.stride)
             f32 = m.PackedElementFieldNumericType.Float32
             self._points.log(m.PointCloud(
@@ -115,7 +121,8 @@ class FoxgloveSink:
     def on_status(self, status: dict[str, Any]) -> None:
         import json
 
-        self._status.log(json.loads(json.dumps(status, default=str)))
+        if self._status.has_sinks():
+            self._status.log(json.loads(json.dumps(status, default=str)))
 
     def close(self) -> None:
         server, self.server = getattr(self, "server", None), None

@@ -13,10 +13,15 @@ topic                               type                        content
 ``/<node>/confidence/image_rect_raw`` sensor_msgs/msg/Image     mono8, higher = more confident
 ``/<node>/confidence/camera_info``  sensor_msgs/msg/CameraInfo  with every confidence image
 ``/<node>/depth/points``            sensor_msgs/msg/PointCloud2 x y z float32 (``[points]``)
+``/tf``                             tf2_msgs/msg/TFMessage      with every depth map: the frame
+                                                                tree ``<name>_link`` -> optical
+                                                                -> projector optical frame
 ==================================  ==========================  ===============================
 
 Every message has ``header.stamp`` = the time of the stack's last camera frame and ``frame_id``
-``<node>_optical_frame`` (REP 103 / 105; `edge.io.ros.frame_ids`).  QoS: reliable, volatile, keep
+``<name>_optical_frame`` with ``<name>`` the device name with ``-`` -> ``_`` (REP 103 / 105;
+`edge.io.ros.frame_ids`; the same frame id as in recordings and the Foxglove sink, whatever the
+node is called).  QoS: reliable, volatile, keep
 last 10.  The domain is ``ROS_DOMAIN_ID`` (default 0).
 """
 
@@ -31,6 +36,7 @@ from edge.io import ros
 from .pipeline import DepthResult
 
 IMAGE, INFO, CLOUD = "sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg/PointCloud2"
+TF = "tf2_msgs/msg/TFMessage"
 #: leaf -> (topic below /<node>, ROS type)
 TOPICS = {
     "depth": ("depth/image_rect_raw", IMAGE),
@@ -38,6 +44,7 @@ TOPICS = {
     "confidence": ("confidence/image_rect_raw", IMAGE),
     "confidence_info": ("confidence/camera_info", INFO),
     "points": ("depth/points", CLOUD),
+    "tf": ("/tf", TF),  # absolute: the tf tree is global
 }
 
 
@@ -78,7 +85,7 @@ class RosSink:
         self.profile = profile
         self.domain_id = ros.domain_id_from_env(os.environ if environ is None else environ)
         self.node = profile.ros.node or ros.ros_name(profile.zenoh.device)
-        self.frame_id = ros.frame_ids(self.node)["optical"]
+        self.frame_id = ros.frame_ids(profile.zenoh.device)["optical"]  # as in recordings and Foxglove
         self._own_session = session is None
         if session is None:
             z = profile.zenoh
@@ -86,7 +93,7 @@ class RosSink:
             session = open_session(dataclasses.replace(z, connect=connect))
         self.session = session
         self.zid = str(session.info.zid())
-        self.topics = {leaf: f"/{self.node}/{t}" for leaf, (t, _) in TOPICS.items()}
+        self.topics = {leaf: t if t.startswith("/") else f"/{self.node}/{t}" for leaf, (t, _) in TOPICS.items()}
         self._publishers: dict[str, _Publisher] = {}
         try:
             self.node_token_key = ros.node_token(self.domain_id, self.zid, 0, self.node)
@@ -124,6 +131,8 @@ class RosSink:
         pubs["depth_info"].put(INFO, info)
         pubs["confidence"].put(IMAGE, ros.image_message(result.confidence, timestamp_ns=t, frame_id=fid))
         pubs["confidence_info"].put(INFO, info)
+        geometry = result.geometry if result.geometry is not None else self.profile.geometry
+        pubs["tf"].put(TF, ros.tf_message(self.profile.zenoh.device, geometry.baseline_m, timestamp_ns=t))
         if "points" in pubs:
             pts = result_points(result, self.profile.geometry, self.profile.points.stride)
             pubs["points"].put(CLOUD, ros.point_cloud2_message(pts, timestamp_ns=t, frame_id=fid))
