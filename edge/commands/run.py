@@ -29,6 +29,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--listen", action="append", metavar="ENDPOINT",
                    help="zenoh listen endpoint(s), overriding the profile (e.g. tcp/127.0.0.1:7450)")
     p.add_argument("--connect", action="append", metavar="ENDPOINT", help="zenoh endpoint(s) to connect to")
+    p.add_argument("--mode", choices=("peer", "client"),
+                   help="zenoh mode, overriding the profile: 'client' talks only to the --connect routers "
+                        "(and listens nowhere unless --listen is given), 'peer' also accepts direct connections")
     p.add_argument("--interference", action="store_true",
                    help="event / light-curtain simulators: add an unsynchronised second device nearby")
     p.add_argument("--poses", type=int, default=0, metavar="K",
@@ -71,6 +74,10 @@ def load_run_profile(args: argparse.Namespace):
         zenoh["listen"] = list(args.listen)
     if getattr(args, "connect", None):
         zenoh["connect"] = list(args.connect)
+    if getattr(args, "mode", None):
+        zenoh["mode"] = args.mode
+        if args.mode == "client" and not getattr(args, "listen", None):
+            zenoh["listen"] = []  # a client reaches everyone through its routers: no port to clash
     if zenoh:
         profile = apply_update(profile, {"zenoh": zenoh}, source=f"{profile.source} + command line")
     return profile
