@@ -21,10 +21,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="more recordings; FILE and these may also be directories (their *.mcap) or glob "
                         "patterns such as 'recs/*.mcap': then every file is replayed and one table printed")
     p.add_argument("--workers", type=int, metavar="N",
-                   help="replay many recordings on N Ray workers (needs pip install 'edge[fleet]'); "
-                        "default / 1: one after the other in this process")
+                   help="replay many recordings on a local Ray instance of N workers, one file per task "
+                        "(needs pip install 'edge[fleet]'); default / 1: one after the other in this process")
     p.add_argument("--address", metavar="ADDR",
-                   help="run the replays on the existing Ray cluster at ADDR (e.g. ray://head:10001 or auto)")
+                   help="run the replays on the existing Ray cluster at ADDR (e.g. ray://head:10001, head:6379 "
+                        "or auto), as many at once as it has CPUs; its nodes need edge installed")
     p.add_argument("--report", metavar="REPORT.json", help="also write the per-file results as JSON")
 
 
@@ -57,7 +58,7 @@ def replay_many(args: argparse.Namespace) -> int:
         expected = load_profile(args.profile)
     workers = args.workers or 1
     engine = "serial" if not use_ray else ("ray local" if args.address is None else f"ray {args.address}")
-    print(f"edge replay: {len(paths)} recordings, {engine}" + (f", {workers} workers" if use_ray else ""),
+    print(f"edge replay: {len(paths)} recordings, {engine}" + (f", {workers} workers" if use_ray and args.address is None else ""),
           flush=True)
     from tqdm import tqdm
 
@@ -75,6 +76,8 @@ def replay_many(args: argparse.Namespace) -> int:
         else:
             results = replay_serial(paths, expected, on_done=done)
     wall = time.perf_counter() - start
+    if args.address is not None and timings.get("cpus"):
+        workers = int(timings["cpus"])
     for line in summary_lines(results, wall_s=wall, workers=workers, engine=engine):
         print(line)
     if "startup_s" in timings:

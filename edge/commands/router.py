@@ -47,7 +47,7 @@ def run_router(args: argparse.Namespace) -> int:
         what = "connected" if event.kind == zenoh.SampleKind.PUT else "gone"
         print(f"{time.strftime('%H:%M:%S')} {str(t.whatami).split('.')[-1].lower()} {t.zid} {what}", flush=True)
 
-    listener = router.info.declare_transport_events_listener(on_event, history=False) \
+    listener = router.info.declare_transport_events_listener(on_event, history=True) \
         if hasattr(router.info, "declare_transport_events_listener") else None
     print(f"edge router {router.zid()}: listening on {', '.join(args.listen)}"
           + (f", meshed with {', '.join(args.connect)}" if args.connect else ""), flush=True)

@@ -58,7 +58,8 @@ def replay_on_ray(paths: Sequence[str], *, workers: int, address: str | None = N
                   on_done: Callable[[FileResult], None] | None = None,
                   timings: dict[str, float] | None = None) -> list[FileResult]:
     """Replay ``paths`` as Ray tasks (see module docstring); ``on_done`` is called per finished file;
-    ``timings["startup_s"]`` gets the seconds ``ray.init`` took (0 if Ray was already running)."""
+    ``timings["startup_s"]`` gets the seconds ``ray.init`` took (0 if Ray was already running) and
+    ``timings["cpus"]`` the cluster's CPUs (= the number of files replayed at once)."""
     ray = require_ray("--workers > 1" if address is None else "--address")
     if workers < 1:
         raise ValueError(f"expected --workers >= 1, got {workers}")
@@ -80,6 +81,7 @@ def replay_on_ray(paths: Sequence[str], *, workers: int, address: str | None = N
                              f"{type(exc).__name__}: {exc}") from None
     if timings is not None:
         timings["startup_s"] = time.perf_counter() - t0
+        timings["cpus"] = float(ray.cluster_resources().get("CPU", 0.0))
     try:
         task = ray.remote(num_cpus=1, max_retries=0)(_task)
         refs = {task.remote(p, expected_profile): i for i, p in enumerate(paths)}
