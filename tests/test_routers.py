@@ -159,3 +159,26 @@ def test_run_mode_client_needs_a_router():
     assert p.zenoh.mode == "client" and p.zenoh.listen == () and p.zenoh.connect == ("tcp/127.0.0.1:7",)
     with pytest.raises(ProfileError, match="zenoh.connect"):
         load_run_profile(argparse.Namespace(profile="sim-dlp", listen=None, connect=None, mode="client"))
+
+
+def test_client_waits_for_its_router_with_connect_timeout():
+    from edge.io.zenoh import DepthPublisher, open_router
+    from edge.profiles import apply_update
+
+    a = f"tcp/127.0.0.1:{free_port()}"
+    client = {"zenoh": {"mode": "client", "listen": [], "connect": [a]}}
+    with pytest.raises(zenoh.ZError):  # zenoh's client default: fail at once when no router answers
+        DepthPublisher(apply_update(load_test_profile(), client))
+    routers = []
+    timer = threading.Timer(1.0, lambda: routers.append(open_router([a])))
+    timer.start()
+    try:
+        start = time.monotonic()
+        profile = apply_update(load_test_profile(), {"zenoh": {**client["zenoh"], "connect_timeout_s": 20}})
+        with DepthPublisher(profile) as pub:  # zenoh.open waits for the router (connect/timeout_ms)
+            assert time.monotonic() - start >= 0.9
+            assert pub.links.stats()["routers"] == 1
+    finally:
+        timer.join()
+        for r in routers:
+            r.close()

@@ -32,6 +32,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--mode", choices=("peer", "client"),
                    help="zenoh mode, overriding the profile: 'client' talks only to the --connect routers "
                         "(and listens nowhere unless --listen is given), 'peer' also accepts direct connections")
+    p.add_argument("--connect-timeout", type=float, metavar="S",
+                   help="client mode: wait up to S s at start-up for a --connect router (default: the profile's "
+                        "zenoh.connect_timeout_s, 0 = fail at once)")
     p.add_argument("--interference", action="store_true",
                    help="event / light-curtain simulators: add an unsynchronised second device nearby")
     p.add_argument("--poses", type=int, default=0, metavar="K",
@@ -78,6 +81,8 @@ def load_run_profile(args: argparse.Namespace):
         zenoh["mode"] = args.mode
         if args.mode == "client" and not getattr(args, "listen", None):
             zenoh["listen"] = []  # a client reaches everyone through its routers: no port to clash
+    if getattr(args, "connect_timeout", None) is not None:
+        zenoh["connect_timeout_s"] = args.connect_timeout
     if zenoh:
         profile = apply_update(profile, {"zenoh": zenoh}, source=f"{profile.source} + command line")
     return profile

@@ -82,9 +82,13 @@ class ConfigRejected(ValueError):
 
 
 def make_config(*, mode: str = "peer", listen: Iterable[str] = (), connect: Iterable[str] = (),
-                multicast_scouting: bool = False) -> zenoh.Config:
-    """A zenoh.Config with the mode, endpoints and multicast scouting set (nothing else)."""
+                multicast_scouting: bool = False, connect_timeout_s: float = 0.0) -> zenoh.Config:
+    """A zenoh.Config with the mode, endpoints and multicast scouting set (nothing else but, for a
+    client with ``connect_timeout_s`` > 0, ``connect/timeout_ms``: how long ``zenoh.open`` waits
+    for one of the ``connect`` routers before it fails)."""
     conf = zenoh.Config()
+    if mode == "client" and connect_timeout_s > 0:
+        conf.insert_json5("connect/timeout_ms", json.dumps(int(round(connect_timeout_s * 1000))))
     conf.insert_json5("mode", json.dumps(mode))
     conf.insert_json5("listen/endpoints", json.dumps(list(listen)))
     conf.insert_json5("connect/endpoints", json.dumps(list(connect)))
@@ -105,7 +109,8 @@ def open_router(listen: Iterable[str], connect: Iterable[str] = (), *,
 def open_session(settings: ZenohSettings) -> zenoh.Session:
     """A zenoh session configured from a profile's ``[zenoh]`` table."""
     return zenoh.open(make_config(mode=settings.mode, listen=settings.listen, connect=settings.connect,
-                                  multicast_scouting=settings.multicast_scouting))
+                                  multicast_scouting=settings.multicast_scouting,
+                                  connect_timeout_s=settings.connect_timeout_s))
 
 
 # -- header / payload ----------------------------------------------------------------------------
