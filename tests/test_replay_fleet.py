@@ -107,3 +107,7 @@ def test_replay_many_usage_errors(recordings, tmp_path, capsys):
     assert "matches no file" in capsys.readouterr().err
     assert main(["replay", str(recordings), "--recover"]) == 2
     assert "--recover replays one recording" in capsys.readouterr().err
+    assert main(["replay", str(recordings), "--report", str(tmp_path / "no" / "r.json")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert main(["replay", str(tmp_path)]) == 2  # a directory without recordings
+    assert "holds no *.mcap" in capsys.readouterr().err

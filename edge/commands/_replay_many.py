@@ -45,6 +45,8 @@ def replay_many(args: argparse.Namespace) -> int:
                              "a directory, a pattern, --workers, --address or --report")
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"expected --workers >= 1, got {args.workers}")
+    if args.report and not os.path.isdir(os.path.dirname(os.path.abspath(args.report))):
+        raise ValueError(f"--report {args.report!r}: directory {os.path.dirname(args.report)!r} does not exist")
     use_ray = args.address is not None or (args.workers or 1) > 1
     if use_ray:
         from edge.runtime.fleet import require_ray
