@@ -18,8 +18,8 @@ zenoh versions without it) and counts, for the ``zenoh`` object of the status:
 ``connected``               at least one router connected (always true without connect endpoints)
 ``disconnects``             times the last router transport closed
 ``reconnects``              times a router came back after a disconnect
-``disconnected_s``          seconds without any router since the session opened, while connect
-                            endpoints are configured (includes the current gap)
+``disconnected_s``          seconds without any router (includes the current gap): for a client
+                            from the session's start, for a peer once it had seen a router
 ``published_while_disconnected``  depth maps put while no router was connected (lost for every
                             subscriber behind a router)
 """
@@ -38,8 +38,8 @@ __all__ = ["RouterLinks"]
 class RouterLinks:
     """Counts router connects/disconnects of ``session`` (see the module docstring).
 
-    ``expect_router``: the session has connect endpoints (client, or a peer wired to a router),
-    so time without a router is a gap; without them only the counts are kept.
+    ``expect_router``: the session cannot work without a router (a client), so any time without
+    one is a gap; otherwise (a peer) gaps count only after a first router was connected.
     """
 
     def __init__(self, session: zenoh.Session, *, expect_router: bool, clock=time.monotonic):
