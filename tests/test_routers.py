@@ -182,3 +182,40 @@ def test_client_waits_for_its_router_with_connect_timeout():
         timer.join()
         for r in routers:
             r.close()
+
+
+def test_router_links_count_gaps_exactly():
+    """RouterLinks arithmetic on scripted transport events and a fake clock."""
+    from types import SimpleNamespace
+
+    from edge.io.zenoh_links import RouterLinks
+
+    now = [100.0]
+    listeners = []
+    info = SimpleNamespace(declare_transport_events_listener=lambda cb, history: listeners.append(cb)
+                           or SimpleNamespace(undeclare=lambda: None))
+    links = RouterLinks(SimpleNamespace(info=info), expect_router=True, clock=lambda: now[0])
+    (emit,) = listeners
+
+    def event(opened, zid, kind=zenoh.WhatAmI.ROUTER):
+        emit(SimpleNamespace(kind=zenoh.SampleKind.PUT if opened else zenoh.SampleKind.DELETE,
+                             transport=SimpleNamespace(zid=zid, whatami=kind)))
+
+    now[0] = 102.0
+    event(True, "r1")                       # first router after 2 s: a start-up gap, not a reconnect
+    event(True, "p1", zenoh.WhatAmI.PEER)
+    assert links.stats() == {"routers": 1, "peers": 1, "connected": True, "disconnects": 0, "reconnects": 0,
+                             "disconnected_s": 2.0, "published_while_disconnected": 0}
+    now[0] = 110.0
+    event(False, "r1")                      # cut off at 110
+    links.count_publish()
+    links.count_publish()
+    now[0] = 113.5
+    assert links.stats()["disconnected_s"] == 5.5 and not links.stats()["connected"]
+    event(True, "r2")                       # back at 113.5 through another router
+    event(True, "r1")
+    event(False, "r1")                      # one of two routers gone: still connected
+    now[0] = 120.0
+    s = links.stats()
+    assert (s["routers"], s["disconnects"], s["reconnects"], s["disconnected_s"]) == (1, 1, 1, 5.5)
+    assert s["published_while_disconnected"] == 2 and s["connected"]
