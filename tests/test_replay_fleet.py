@@ -111,3 +111,17 @@ def test_replay_many_usage_errors(recordings, tmp_path, capsys):
     assert "does not exist" in capsys.readouterr().err
     assert main(["replay", str(tmp_path)]) == 2  # a directory without recordings
     assert "holds no *.mcap" in capsys.readouterr().err
+
+
+def test_address_nobody_listens_is_one_clear_error(recordings, capsys):
+    pytest.importorskip("ray")
+    import socket
+
+    from edge.cli import main
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    assert main(["replay", str(recordings), "--address", f"127.0.0.1:{port}"]) == 2
+    err = capsys.readouterr().err
+    assert "no Ray cluster answers at 127.0.0.1:" in err and err.count("\n") == 1

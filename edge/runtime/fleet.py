@@ -49,6 +49,21 @@ def worker_env(workers: int, *, local: bool) -> dict[str, str]:
     return env
 
 
+def check_reachable(address: str, timeout_s: float = 5.0) -> None:
+    """ValueError when ``host:port`` (or ``ray://host:port``) does not accept a TCP connection within
+    ``timeout_s`` (``ray.init`` would retry such an address for minutes). ``auto`` is left to Ray."""
+    import socket
+
+    target = address[len("ray://"):] if address.startswith("ray://") else address
+    host, sep, port = target.rpartition(":")
+    if not sep or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s).close()
+    except OSError as exc:
+        raise ValueError(f"no Ray cluster answers at {address} ({exc.strerror or exc})") from None
+
+
 def _task(path: str, expected_profile: Any) -> dict[str, Any]:
     return replay_one(path, expected_profile).as_dict()
 
@@ -73,6 +88,7 @@ def replay_on_ray(paths: Sequence[str], *, workers: int, address: str | None = N
             kwargs.update(num_cpus=workers, include_dashboard=False,
                           object_store_memory=128 * 1024 * 1024)  # results are small dicts
         else:
+            check_reachable(address)
             kwargs.update(address=address)
         try:
             ray.init(**kwargs)
