@@ -146,6 +146,13 @@ def run(args: argparse.Namespace) -> int:
         status = service.run(stacks=args.stacks, seconds=args.seconds)
     for line in summary_lines(status, console):
         print(line)
+    for sink in service.sinks:  # router links of the zenoh sink (edge.io.zenoh_links)
+        links = getattr(getattr(sink, "publisher", None), "links", None)
+        z = links.stats() if links is not None else None
+        if z and (z["disconnects"] or service.profile.zenoh.mode == "client"):
+            print(f"zenoh: {z['disconnects']} disconnects, {z['reconnects']} reconnects, "
+                  f"{z['disconnected_s']:.1f} s without a router, "
+                  f"{z['published_while_disconnected']} depth maps put while disconnected")
     if received:
         print(f"stopped by signal {signal.Signals(received[0]).name}", file=sys.stderr)
     if status.get("errors") and status["stacks_decoded"] == 0:

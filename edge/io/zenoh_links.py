@@ -56,15 +56,19 @@ class RouterLinks:
         self.reconnects = 0
         self.published_while_disconnected = 0
         self._listener = None
+        self._closed = False
         declare = getattr(session.info, "declare_transport_events_listener", None)
+        self._polling = declare is None  # older zenoh: poll in stats()
         if declare is not None:
             self._listener = declare(self._on_event, history=True)
-        else:  # older zenoh: poll in stats()
+        else:
             self._poll()
 
     # -- events -----------------------------------------------------------------------------------
 
     def _on_event(self, event: Any) -> None:
+        if self._closed:
+            return
         transport = event.transport
         zid = str(transport.zid)
         is_router = transport.whatami == zenoh.WhatAmI.ROUTER
@@ -92,6 +96,8 @@ class RouterLinks:
             self.disconnects += 1
 
     def _poll(self) -> None:
+        if self._closed:  # counts are final once closed
+            return
         try:
             routers = {str(z) for z in self._session.info.routers_zid()}
             peers = {str(z) for z in self._session.info.peers_zid()}
@@ -108,7 +114,7 @@ class RouterLinks:
     @property
     def connected(self) -> bool:
         """At least one router is connected (True when no router is expected and none was seen)."""
-        if self._listener is None:
+        if self._polling:
             self._poll()
         with self._lock:
             return bool(self._routers) or not (self._expect or self._ever_up)
@@ -121,7 +127,7 @@ class RouterLinks:
 
     def stats(self) -> dict[str, Any]:
         """The ``zenoh`` object of the status (keys in the module docstring)."""
-        if self._listener is None:
+        if self._polling:
             self._poll()
         with self._lock:
             down = self._down_total
@@ -138,7 +144,12 @@ class RouterLinks:
             }
 
     def close(self) -> None:
-        """Undeclare the transport-events listener (before the session closes)."""
+        """Undeclare the transport-events listener (before the session closes); the counts stay."""
+        with self._lock:
+            self._closed = True
+            if self._down_since is not None:  # freeze the gap
+                self._down_total += self._clock() - self._down_since
+                self._down_since = None
         if self._listener is not None:
             try:
                 self._listener.undeclare()
