@@ -9,7 +9,8 @@ Workers get ``NUMBA_CACHE_DIR`` (the driver's, when set) through ``runtime_env``
 they load the decoder kernels the driver compiled instead of compiling their own, and, on a
 local instance, ``NUMBA_NUM_THREADS = cores // N`` so N workers do not oversubscribe the cores
 (the decoder kernels are numba-parallel), and ``PYTHONPATH`` with this edge package's parent
-directory.  On a cluster, every node needs edge and its dependencies installed (same version).
+directory.  On a cluster, every node needs edge and its dependencies installed (same version)
+and the recordings at the same paths (shared storage): tasks get paths, not file contents.
 """
 
 from __future__ import annotations
