@@ -69,6 +69,9 @@ def test_replay_many_serial_and_on_ray(recordings, tmp_path, capsys):
     assert _verdicts(report) == EXPECTED
     assert "truncated" in next(f["error"] for f in report["files"] if f["path"].endswith("truncated.mcap"))
 
+    import signal
+
+    sigterm = signal.getsignal(signal.SIGTERM)
     fleet = tmp_path / "fleet.json"
     assert main(["replay", str(recordings / "*.mcap"), "--workers", "2", "--report", str(fleet)]) == 1
     out = capsys.readouterr().out
@@ -81,6 +84,7 @@ def test_replay_many_serial_and_on_ray(recordings, tmp_path, capsys):
     import ray
 
     assert not ray.is_initialized()  # the local instance was shut down
+    assert signal.getsignal(signal.SIGTERM) is sigterm  # and ray.init's SIGTERM handler removed
 
 
 def test_replay_many_all_identical_exits_0(recordings, capsys):

@@ -177,7 +177,7 @@ def test_client_waits_for_its_router_with_connect_timeout():
         profile = apply_update(load_test_profile(), {"zenoh": {**client["zenoh"], "connect_timeout_s": 20}})
         with DepthPublisher(profile) as pub:  # zenoh.open waits for the router (connect/timeout_ms)
             assert time.monotonic() - start >= 0.9
-            assert pub.links.stats()["routers"] == 1
+            assert pub.links.stats()["routers"] == 1 and pub.links.connected
     finally:
         timer.join()
         for r in routers:

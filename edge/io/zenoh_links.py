@@ -61,8 +61,8 @@ class RouterLinks:
         self._polling = declare is None  # older zenoh: poll in stats()
         if declare is not None:
             self._listener = declare(self._on_event, history=True)
-        else:
-            self._poll()
+        # the history events may arrive later on a zenoh thread: take the transports open now too
+        self._poll()
 
     # -- events -----------------------------------------------------------------------------------
 
@@ -104,6 +104,9 @@ class RouterLinks:
         except Exception:  # a closed session
             return
         with self._lock:
+            if not self._polling:  # seeding: events follow; only add what is open now
+                routers |= self._routers
+                peers |= self._peers
             changed = routers != self._routers
             self._routers, self._peers = routers, peers
             if changed:

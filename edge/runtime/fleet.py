@@ -16,6 +16,8 @@ and the recordings at the same paths (shared storage): tasks get paths, not file
 from __future__ import annotations
 
 import os
+import signal
+import threading
 import time
 from typing import Any, Callable, Sequence
 
@@ -82,6 +84,8 @@ def replay_on_ray(paths: Sequence[str], *, workers: int, address: str | None = N
     local = address is None
     started_here = not ray.is_initialized()
     t0 = time.perf_counter()
+    main = threading.current_thread() is threading.main_thread()
+    old_sigterm = signal.getsignal(signal.SIGTERM) if main else None  # ray.init replaces it
     if started_here:
         kwargs: dict[str, Any] = dict(runtime_env={"env_vars": worker_env(workers, local=local)},
                                       logging_level="ERROR", log_to_driver=False)
@@ -94,6 +98,8 @@ def replay_on_ray(paths: Sequence[str], *, workers: int, address: str | None = N
         try:
             ray.init(**kwargs)
         except Exception as exc:  # cluster not reachable, ...
+            if old_sigterm is not None:
+                signal.signal(signal.SIGTERM, old_sigterm)
             raise ValueError(f"could not start Ray{'' if local else f' at {address}'}: "
                              f"{type(exc).__name__}: {exc}") from None
     if timings is not None:
@@ -119,3 +125,5 @@ def replay_on_ray(paths: Sequence[str], *, workers: int, address: str | None = N
     finally:
         if started_here:
             ray.shutdown()
+            if old_sigterm is not None:
+                signal.signal(signal.SIGTERM, old_sigterm)
