@@ -10,8 +10,8 @@ pixels black). Exit 1 if no depth map arrived.
     edge subscribe --all [--prefix sl] [--connect ENDPOINT ...] [--seconds S] [--interval I]
 
 lists every device under the prefix from this one subscriber (`edge.io.zenoh_monitor`): its
-liveliness, depth maps/s and latency measured here, and its own status (fps, latency, drops,
-router reconnects), as a table refreshed every ``--interval`` s. Exit 1 if no device was seen.
+liveliness, depth maps/s and latency measured here (over the last 5 s), and its own status (fps,
+latency, drops, router reconnects), as a table refreshed every ``--interval`` s. Exit 1 if no device was seen.
 """
 
 from __future__ import annotations
@@ -108,7 +108,7 @@ def _run_all(args: argparse.Namespace) -> int:
             while True:
                 left = args.seconds - (time.monotonic() - start)
                 time.sleep(max(0.0, min(args.interval, left)))
-                rows = monitor.rows(window_s=max(args.interval, 2.0))
+                rows = monitor.rows(window_s=max(args.interval, 5.0))
                 elapsed = time.monotonic() - start
                 lines = [f"{args.prefix}/* at {elapsed:.1f} s ({len(rows)} devices, {sum(r.alive for r in rows)} alive)"]
                 lines += format_table(rows)
@@ -137,7 +137,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--seconds", type=float, default=10.0, help="stop after S seconds (default %(default)s)")
     parser.add_argument("--all", action="store_true",
                         help="list every device under --prefix (liveliness, status, depth rate and latency "
-                             "measured here) as a table refreshed every --interval s")
+                             "measured here over the last 5 s) as a table refreshed every --interval s")
     parser.add_argument("--interval", type=float, default=1.0,
                         help="--all: seconds between table refreshes (default %(default)s)")
     parser.set_defaults(func=lambda a: (_run_all if a.all else _run)(_defaults(a)))

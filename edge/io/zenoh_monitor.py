@@ -63,6 +63,7 @@ class DeviceMonitor:
         self._devices: dict[str, _Device] = {}
         self.errors: list[str] = []
         self._closed = False
+        self._started = time.monotonic()
         self._entities = [
             session.liveliness().declare_subscriber(f"{prefix}/*/alive", self._on_alive, history=True),
             session.declare_subscriber(f"{prefix}/*/status", self._on_status),
@@ -110,9 +111,11 @@ class DeviceMonitor:
             dev.depth.append((now, (received_ns - stamp) / 1e6 if stamp is not None else float("nan")))
             dev.depth_total += 1
 
-    def rows(self, window_s: float = 2.0) -> list[DeviceRow]:
-        """One row per device seen, sorted by name; rates and latency over the last ``window_s``."""
+    def rows(self, window_s: float = 5.0) -> list[DeviceRow]:
+        """One row per device seen, sorted by name; rates and latency over the last ``window_s``
+        (or since the monitor started, if that is shorter)."""
         now = time.monotonic()
+        span = max(1e-3, min(window_s, now - self._started))
         out = []
         with self._lock:
             items = sorted(self._devices.items())
@@ -123,7 +126,7 @@ class DeviceMonitor:
                 z = st.get("zenoh") if isinstance(st.get("zenoh"), dict) else {}
                 out.append(DeviceRow(
                     device=name, alive=dev.alive,
-                    depth_per_s=len(recent) / window_s,
+                    depth_per_s=len(recent) / span,
                     latency_ms_p50=lats[len(lats) // 2] if lats else None,
                     latency_ms_max=lats[-1] if lats else None,
                     depth_total=dev.depth_total,
