@@ -219,3 +219,28 @@ def test_router_links_count_gaps_exactly():
     s = links.stats()
     assert (s["routers"], s["disconnects"], s["reconnects"], s["disconnected_s"]) == (1, 1, 1, 5.5)
     assert s["published_while_disconnected"] == 2 and s["connected"]
+
+
+def test_edge_router_command_routes_and_reports():
+    # a subprocess, as deployed (one process per router)
+    import os
+    import subprocess
+    import sys
+
+    from edge.io.zenoh import make_config
+
+    a = f"tcp/127.0.0.1:{free_port()}"
+    proc = subprocess.Popen([sys.executable, "-m", "edge.cli", "router", "--listen", a, "--seconds", "30"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        assert "listening on " + a in proc.stdout.readline()
+        session = zenoh.open(make_config(mode="client", connect=[a]))
+        assert len(session.info.routers_zid()) == 1
+        line = proc.stdout.readline()
+        session.close()
+        assert " client " in line and line.rstrip().endswith("connected"), line
+    finally:
+        proc.terminate()
+        out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 0, out
