@@ -13,7 +13,9 @@ def register(subparsers: Any) -> None:
         "replay", help="decode a recording with its recorded profile; check depth bit for bit",
         description="Decode the raw frames of an edge MCAP recording with the recorded profile and compare "
                     "depth and confidence with what the service recorded, bit for bit. Exit 0 when every "
-                    "recorded depth map is reproduced, 1 on a mismatch, 2 for an unreadable file.")
+                    "recorded depth map is reproduced, 1 on a mismatch, 2 for an unreadable file. Several files, a directory "
+                    "or a glob pattern replay every recording (in parallel on Ray with --workers N) and print one "
+                    "table: exit 0 when all are bit-identical, 1 otherwise.")
     p.add_argument("file", metavar="FILE")
     p.add_argument("--profile", help="expected profile (name or TOML): refuse a recording of another profile")
     p.add_argument("--recover", action="store_true",
@@ -24,13 +26,19 @@ def register(subparsers: Any) -> None:
     p.add_argument("--ply", metavar="DIR",
                    help="write the point cloud of every re-decoded depth map to DIR/<device>_<stack>.ply "
                         "(every valid pixel, metres, camera optical frame, grey = confidence)")
+    from edge.commands._replay_many import add_arguments
+
+    add_arguments(p)  # many recordings: FILE... / DIR / 'GLOB', --workers, --address, --report
     p.set_defaults(func=replay)
 
 
 def replay(args: argparse.Namespace) -> int:
+    from edge.commands._replay_many import is_many, replay_many
     from edge.io.mcap import RecordingError, recover
     from edge.runtime.replay import replay_recording
 
+    if is_many(args):
+        return replay_many(args)
     path = args.file
     if not os.path.exists(path):
         raise FileNotFoundError(f"recording {path!r} does not exist")

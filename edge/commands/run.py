@@ -36,6 +36,12 @@ def register(subparsers: Any) -> None:
     p.add_argument("--foxglove", nargs="?", type=int, const=8765, default=None, metavar="PORT",
                    help="serve depth, confidence, point cloud, calibration and frame tree to the Foxglove app "
                         "over its WebSocket protocol on 127.0.0.1:PORT (default 8765; needs edge[foxglove])")
+    p.add_argument("--mode", choices=("peer", "client"),
+                   help="zenoh mode, overriding the profile: 'client' talks only to the --connect routers "
+                        "(and listens nowhere unless --listen is given), 'peer' also accepts direct connections")
+    p.add_argument("--connect-timeout", type=float, metavar="S",
+                   help="client mode: wait up to S s at start-up for a --connect router (default: the profile's "
+                        "zenoh.connect_timeout_s, 0 = fail at once)")
     p.add_argument("--interference", action="store_true",
                    help="event / light-curtain simulators: add an unsynchronised second device nearby")
     p.add_argument("--poses", type=int, default=0, metavar="K",
@@ -78,6 +84,12 @@ def load_run_profile(args: argparse.Namespace):
         zenoh["listen"] = list(args.listen)
     if getattr(args, "connect", None):
         zenoh["connect"] = list(args.connect)
+    if getattr(args, "mode", None):
+        zenoh["mode"] = args.mode
+        if args.mode == "client" and not getattr(args, "listen", None):
+            zenoh["listen"] = []  # a client reaches everyone through its routers: no port to clash
+    if getattr(args, "connect_timeout", None) is not None:
+        zenoh["connect_timeout_s"] = args.connect_timeout
     update: dict[str, Any] = {"zenoh": zenoh} if zenoh else {}
     if getattr(args, "ros", False):
         update["ros"] = {"enabled": True}
@@ -162,6 +174,13 @@ def run(args: argparse.Namespace) -> int:
         status = service.run(stacks=args.stacks, seconds=args.seconds)
     for line in summary_lines(status, console):
         print(line)
+    for sink in service.sinks:  # router links of the zenoh sink (edge.io.zenoh_links)
+        links = getattr(getattr(sink, "publisher", None), "links", None)
+        z = links.stats() if links is not None else None
+        if z and (z["disconnects"] or service.profile.zenoh.mode == "client"):
+            print(f"zenoh: {z['disconnects']} disconnects, {z['reconnects']} reconnects, "
+                  f"{z['disconnected_s']:.1f} s without a router, "
+                  f"{z['published_while_disconnected']} depth maps put while disconnected")
     if received:
         print(f"stopped by signal {signal.Signals(received[0]).name}", file=sys.stderr)
     if status.get("errors") and status["stacks_decoded"] == 0:

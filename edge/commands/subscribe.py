@@ -7,6 +7,12 @@ Prints one line per second (depth maps/s, median and max latency in ms, dropped,
 fps) and a summary; ``--png`` writes the last depth map colour-mapped (cv2.COLORMAP_TURBO, invalid
 pixels black); ``--ply`` writes the last point cloud of ``sl/<device>/points`` (metres, camera
 optical frame) with `edge.io.ply.write_ply`. Exit 1 if no depth map (or, with --ply, no cloud) arrived.
+
+    edge subscribe --all [--prefix sl] [--connect ENDPOINT ...] [--seconds S] [--interval I]
+
+lists every device under the prefix from this one subscriber (`edge.io.zenoh_monitor`): its
+liveliness, depth maps/s and latency measured here (over the last 5 s), and its own status (fps,
+latency, drops, router reconnects), as a table refreshed every ``--interval`` s. Exit 1 if no device was seen.
 """
 
 from __future__ import annotations
@@ -96,6 +102,47 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_all(args: argparse.Namespace) -> int:
+    import sys
+
+    from edge.io.zenoh import make_config
+    from edge.io.zenoh_monitor import DeviceMonitor, format_table
+
+    if args.png or args.count is not None:
+        raise ValueError("--all lists every device; --png and --count apply to one --device")
+    if args.seconds <= 0:
+        raise ValueError(f"expected --seconds > 0, got {args.seconds}")
+    if not args.interval > 0:
+        raise ValueError(f"expected --interval > 0, got {args.interval}")
+    import zenoh
+
+    tty = sys.stdout.isatty()
+    session = zenoh.open(make_config(connect=args.connect))
+    try:
+        with DeviceMonitor(session, args.prefix) as monitor:
+            start = time.monotonic()
+            rows = []
+            while True:
+                left = args.seconds - (time.monotonic() - start)
+                time.sleep(max(0.0, min(args.interval, left)))
+                rows = monitor.rows(window_s=max(args.interval, 5.0))
+                elapsed = time.monotonic() - start
+                lines = [f"{args.prefix}/* at {elapsed:.1f} s ({len(rows)} devices, {sum(r.alive for r in rows)} alive)"]
+                lines += format_table(rows)
+                print(("\x1b[H\x1b[J" if tty else "") + "\n".join(lines), flush=True)
+                if elapsed >= args.seconds:
+                    break
+            errors = list(monitor.errors)
+    finally:
+        session.close()
+    for e in errors[:3]:
+        print(f"bad sample: {e}")
+    if not rows:
+        print(f"no device under {args.prefix}/ in {args.seconds:g} s (connect {', '.join(args.connect)})")
+        return 1
+    return 0
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("subscribe", help="receive depth over zenoh; print rates, latency; save a PNG")
     parser.add_argument("--device", default=DEFAULT_PROFILE, help="device name in the key space (default %(default)s)")
@@ -107,7 +154,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="write the last point cloud (sl/<device>/points, metres, optical frame) to this PLY")
     parser.add_argument("--count", type=int, default=None, help="stop after N depth maps")
     parser.add_argument("--seconds", type=float, default=10.0, help="stop after S seconds (default %(default)s)")
-    parser.set_defaults(func=lambda a: _run(_defaults(a)))
+    parser.add_argument("--all", action="store_true",
+                        help="list every device under --prefix (liveliness, status, depth rate and latency "
+                             "measured here over the last 5 s) as a table refreshed every --interval s")
+    parser.add_argument("--interval", type=float, default=1.0,
+                        help="--all: seconds between table refreshes (default %(default)s)")
+    parser.set_defaults(func=lambda a: (_run_all if a.all else _run)(_defaults(a)))
 
 
 def _defaults(args: argparse.Namespace) -> argparse.Namespace:

@@ -7,7 +7,8 @@ Keys (``<prefix>/<device>`` from the profile's ``[zenoh]`` table, e.g. ``sl/sim-
 ``sl/<device>/confidence``  payload: H*W uint8, higher = more confident; ``...;mono8``.
 ``sl/<device>/status``      JSON object once per ``status_period_s``: whatever the runtime passes
                             (fps, latency_ms, stacks_dropped, edc_rounds, decoder, errors, ...)
-                            plus ``device`` and ``time_ns``.
+                            plus ``device``, ``time_ns`` and ``zenoh`` (router links: reconnects,
+                            disconnected_s, ...; `edge.io.zenoh_links`).
 ``sl/<device>/config``      queryable. ``get`` with no payload and no parameters -> the active
                             profile as JSON (`edge.profiles.profile_to_dict`). ``get`` with a JSON
                             object payload (a partial profile, e.g. ``{"decoder": {"method":
@@ -54,6 +55,8 @@ import zenoh
 from edge.profiles import Profile, apply_update, profile_to_dict
 from edge.profiles.settings import ZenohSettings
 
+from .zenoh_links import RouterLinks
+
 __all__ = [
     "HEADER_VERSION",
     "ConfigRejected",
@@ -62,6 +65,7 @@ __all__ = [
     "DepthSample",
     "make_config",
     "open_session",
+    "open_router",
     "encode_header",
     "decode_header",
     "decode_image",
@@ -86,9 +90,13 @@ class ConfigRejected(ValueError):
 
 
 def make_config(*, mode: str = "peer", listen: Iterable[str] = (), connect: Iterable[str] = (),
-                multicast_scouting: bool = False) -> zenoh.Config:
-    """A zenoh.Config with the mode, endpoints and multicast scouting set (nothing else)."""
+                multicast_scouting: bool = False, connect_timeout_s: float = 0.0) -> zenoh.Config:
+    """A zenoh.Config with the mode, endpoints and multicast scouting set (nothing else but, for a
+    client with ``connect_timeout_s`` > 0, ``connect/timeout_ms``: how long ``zenoh.open`` waits
+    for one of the ``connect`` routers before it fails)."""
     conf = zenoh.Config()
+    if mode == "client" and connect_timeout_s > 0:
+        conf.insert_json5("connect/timeout_ms", json.dumps(int(round(connect_timeout_s * 1000))))
     conf.insert_json5("mode", json.dumps(mode))
     conf.insert_json5("listen/endpoints", json.dumps(list(listen)))
     conf.insert_json5("connect/endpoints", json.dumps(list(connect)))
@@ -96,10 +104,21 @@ def make_config(*, mode: str = "peer", listen: Iterable[str] = (), connect: Iter
     return conf
 
 
+def open_router(listen: Iterable[str], connect: Iterable[str] = (), *,
+                multicast_scouting: bool = False) -> zenoh.Session:
+    """An in-process zenoh *router* (what ``zenohd`` does; zenohd is not on PyPI): it listens on
+    ``listen``, joins the routers in ``connect`` (a mesh; zenoh retries them while they are down)
+    and routes between every client and peer connected to any router of the mesh.  Close it
+    with ``close()``.  ``edge router`` runs one from the command line."""
+    return zenoh.open(make_config(mode="router", listen=listen, connect=connect,
+                                  multicast_scouting=multicast_scouting))
+
+
 def open_session(settings: ZenohSettings) -> zenoh.Session:
     """A zenoh session configured from a profile's ``[zenoh]`` table."""
     return zenoh.open(make_config(mode=settings.mode, listen=settings.listen, connect=settings.connect,
-                                  multicast_scouting=settings.multicast_scouting))
+                                  multicast_scouting=settings.multicast_scouting,
+                                  connect_timeout_s=settings.connect_timeout_s))
 
 
 # -- header / payload ----------------------------------------------------------------------------
@@ -208,6 +227,7 @@ class DepthPublisher:
                                                           encoding=_DEPTH_ENCODING.with_schema("xyz32f"))
             self._queryable = self.session.declare_queryable(self.keys["config"], self._on_query)
             self._token = self.session.liveliness().declare_token(self.keys["alive"])
+            self.links = RouterLinks(self.session, expect_router=z.mode == "client")
         except BaseException:
             if self._own_session:
                 self.session.close()
@@ -228,6 +248,7 @@ class DepthPublisher:
         head = encode_header(width=w, height=h, encoding="16UC1", timestamp_ns=timestamp_ns,
                              sequence=sequence, stack=stack)
         self._depth.put(np.ascontiguousarray(depth_mm, dtype="<u2").tobytes(), attachment=head)
+        self.links.count_publish()
         if confidence is not None:
             confidence = np.asarray(confidence)
             if confidence.shape != depth_mm.shape or confidence.dtype != np.uint8:
@@ -248,8 +269,10 @@ class DepthPublisher:
         self._points.put(np.ascontiguousarray(xyz, dtype="<f4").tobytes(), attachment=head)
 
     def publish_status(self, status: Mapping[str, Any]) -> None:
-        """Publish a JSON status object (``device`` and ``time_ns`` are added)."""
-        body = {**dict(status), "device": self._profile.zenoh.device, "time_ns": time.time_ns()}
+        """Publish a JSON status object (``device``, ``time_ns`` and ``zenoh``, the router links of
+        `edge.io.zenoh_links.RouterLinks`, are added)."""
+        body = {**dict(status), "device": self._profile.zenoh.device, "time_ns": time.time_ns(),
+                "zenoh": self.links.stats()}
         self._status.put(json.dumps(body, default=str).encode())
 
     # -- config queryable ------------------------------------------------------------------------
@@ -301,6 +324,7 @@ class DepthPublisher:
         if self._closed:
             return
         self._closed = True
+        self.links.close()
         for entity in (self._token, self._queryable, self._points, self._status, self._confidence, self._depth):
             try:
                 entity.undeclare()

@@ -60,6 +60,7 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     connect = []
     multicast_scouting = false
     status_period_s = 1.0
+    connect_timeout_s = 0.0               # client: wait up to S s at start-up for a router (0: fail at once)
 
     [recording]
     chunk_size = 4194304                  # bytes of uncompressed messages per MCAP chunk
@@ -224,6 +225,7 @@ class ZenohSettings:
     connect: tuple[str, ...] = _f((), pattern=_ENDPOINT)
     multicast_scouting: bool = _f(False)
     status_period_s: float = _f(1.0, lo=0.0, hi=3600.0, lo_open=True)
+    connect_timeout_s: float = _f(0.0, lo=0.0, hi=3600.0)
 
     def key(self, leaf: str) -> str:
         """``<prefix>/<device>/<leaf>``, e.g. ``sl/sim-dlp/depth``."""
