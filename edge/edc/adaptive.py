@@ -68,16 +68,31 @@ neighbouring pixels see neighbouring projector columns; a chance codeword agrees
 with probability ~(2 tol + 1) / 2**k per passing neighbour.  An unsupported pixel fails this round
 (it is re-measured if rounds are left).  ``neighbour_tolerance=None`` switches the check off.
 
+Never worse than a single pass
+------------------------------
+Only OPEN pixels are decoded in a round (the sparse pixel list of `edge.edc._kernels`); a
+verified column is never replaced and never invalidated by a later round.  An open pixel's column
+is replaced only by a decode that passes the check AND the neighbour support.  What a pixel
+reports while open (``keep_guess``, default on): its round-1 GUESS -- the nearest codeword of its
+word (the ensemble: the majority column), i.e. what an unchecked single pass reports -- where a
+verified neighbour supports that column (same rule and tolerance as above); otherwise nothing.
+A correct pixel whose word failed the check (a bit flipped in a CRC bit, e.g. gray-10+crc5 under
+inter-reflection) therefore stays correct, and a wrong guess is kept only when it lies within the
+tolerance of a verified neighbour's column.  Verified pixels only accumulate, so the reported set
+only grows from round to round.
+
 Termination
 -----------
 The loop stops when no failing pixel is left, when a round resolved no new pixel ("no pixel
 changes"; repeating the same illumination would only resample noise), when the next mask would
-light nothing, or at ``max_rounds``.  A scene where nothing can be resolved therefore stops after
+light nothing, or at ``max_rounds``.  Without masking (the re-project-everything baseline) a round
+that resolves nothing does not stop the loop: only the round limit does.  A scene where nothing can be resolved therefore stops after
 round 1 with every pixel invalid.
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -85,6 +100,7 @@ import numpy as np
 
 from edge.codes import Code
 
+from . import _kernels
 from .scheme import EdcScheme, unmeasurable_columns
 
 DEFAULT_MIN_CONTRAST = 0.03  # calibrated mode: shadow floor on white - black, fraction of full scale
@@ -109,6 +125,8 @@ class RoundResult:
         unsupported: pixels whose word was a lit codeword but that no passing neighbour supported.
         lit_fraction: fraction of projector pixels lit by this round's pattern frames.
         error_map: (H, W) bool, True where a pixel was checked this round and failed.
+        valid: pixels reported valid after this round (verified + supported guesses).
+        decode_s: seconds `update` spent on this round (decode of the open pixels, mask).
     """
 
     round: int
@@ -120,6 +138,8 @@ class RoundResult:
     unsupported: int
     lit_fraction: float
     error_map: np.ndarray
+    valid: int = 0
+    decode_s: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,7 +149,9 @@ class AdaptiveResult:
     Attributes:
         column: (H, W) int32 decoded codeword index (projector column // stripe), -1 = invalid.
         valid: (H, W) bool, column >= 0.
-        round_of: (H, W) int8, round in which the pixel was resolved (0 = never).
+        round_of: (H, W) int8, round in which the pixel was verified (0 = never).
+        verified: (H, W) bool, the column passed the check and neighbour support in some round
+            (the other valid pixels kept their round-1 guess because verified neighbours support it).
         rounds: per-round results.
         stop_reason: "all resolved", "nothing to resolve" (no pixel over the shadow floor), "no change",
             "round limit" or "nothing to light".
@@ -142,6 +164,7 @@ class AdaptiveResult:
     stop_reason: str
     scheme: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    verified: np.ndarray | None = None
 
     @property
     def frames_per_round(self) -> list[int]:
@@ -231,6 +254,10 @@ class AdaptiveScan:
         disparity_band: optional (min_disparity, max_disparity) to light only candidate columns.
         neighbour_tolerance: a passing pixel needs an 8-neighbour that passed with a column within
             this many codewords (None: no neighbour check).
+        keep_guess: an open pixel is reported with its round-1 guess (nearest codeword; ensemble
+            majority) where a verified neighbour supports that column (see "Never worse").
+        masking: False = the plain "re-project everything again" baseline: every round projects the
+            full pattern set (nothing is switched off) until the round limit.
     """
 
     def __init__(self, scheme: Any, projector_width: int, height: int, *, stripe: int = 1, max_rounds: int = 3,
@@ -238,7 +265,8 @@ class AdaptiveScan:
                  min_range_sigmas: float = DEFAULT_MIN_RANGE_SIGMAS, noise: tuple[float, float] = DEFAULT_NOISE,
                  full_scale: float | None = None, guard: bool = True,
                  disparity_band: tuple[int, int] | None = None,
-                 neighbour_tolerance: int | None = DEFAULT_NEIGHBOUR_TOLERANCE) -> None:
+                 neighbour_tolerance: int | None = DEFAULT_NEIGHBOUR_TOLERANCE, keep_guess: bool = True,
+                 masking: bool = True) -> None:
         self.scheme = _as_scheme(scheme)
         if int(projector_width) != projector_width or projector_width < 1:
             raise ValueError(f"projector_width must be a positive integer, got {projector_width!r}")
@@ -275,6 +303,8 @@ class AdaptiveScan:
         self.guard = bool(guard)
         self.disparity_band = None if disparity_band is None else (int(disparity_band[0]), int(disparity_band[1]))
         self.neighbour_tolerance = None if neighbour_tolerance is None else int(neighbour_tolerance)
+        self.keep_guess = bool(keep_guess)
+        self.masking = bool(masking)
         self.n_columns = min(-(-self.projector_width // self.stripe), max(c.size for c in self.scheme.codes))
         self._profiles = self.scheme.profiles(self.projector_width, self.stripe)
         # columns a self-calibrated round cannot decode (constant word over the round's frames)
@@ -367,69 +397,91 @@ class AdaptiveScan:
             raise ValueError(f"captured frames must be integer or float, got dtype {f.dtype}")
         self._round += 1
         first = self._round == 1
+        t0 = time.perf_counter()
         if first:
             self._camera_shape = f.shape[1:]
             if self.full_scale is None:
                 self.full_scale = float(np.iinfo(f.dtype).max) if np.issubdtype(f.dtype, np.integer) else 1.0
             h, w = self._camera_shape
             self._column = np.full((h, w), -1, dtype=np.int32)
+            self._guess = np.full((h, w), -1, dtype=np.int32)
             self._round_of = np.zeros((h, w), dtype=np.int8)
             if self.self_calibrated:
                 self._pending = self._contrast_ok(f[:n].max(axis=0), f[:n].min(axis=0))
             else:
-                self._black = f[n + 1].astype(np.float32)
+                self._black = f[n + 1]
                 self._pending = self._contrast_ok(f[n], self._black)  # shadow pixels never become pending
+        f = np.ascontiguousarray(f)
         ys, xs = np.nonzero(self._pending)
-        pf = f[:n, ys, xs]
         if self.self_calibrated:
-            hi = pf.max(axis=0).astype(np.float32) if ys.size else np.zeros(0, np.float32)
-            lo = pf.min(axis=0).astype(np.float32) if ys.size else np.zeros(0, np.float32)
+            hi, lo = _kernels.gather_extremes(f, ys, xs, n)
         else:
-            hi = f[n, ys, xs].astype(np.float32)
-            lo = self._black[ys, xs]
-        column, passed = self.scheme.decide(pf, hi, lo)
-        column = column.astype(np.int32)
-        passed = passed & self._contrast_ok(hi, lo)
-        passed &= (column >= 0) & (column < self.n_columns)
+            hi = _kernels.gather_pixels(f[n], ys, xs)
+            lo = _kernels.gather_pixels(np.ascontiguousarray(self._black), ys, xs)
+        if hasattr(self.scheme, "decide_at"):
+            column, passed, guess = self.scheme.decide_at(f, ys, xs, hi, lo)
+        else:
+            column, passed = self.scheme.decide(f[:n, ys, xs], hi, lo)
+            guess = column
+        column = np.asarray(column, dtype=np.int32)
+        measurable = self._contrast_ok(hi, lo)
+        passed = passed & measurable & (column >= 0) & (column < self.n_columns)
         safe = np.clip(column, 0, self.n_columns - 1)
         passed &= ~self.unmeasurable[safe]
         passed &= self._lit[ys, np.minimum(safe * self.stripe, self.projector_width - 1)]
+        if first:  # the single-pass guess (nearest codeword / majority) of every measurable pixel
+            g = np.asarray(guess, dtype=np.int32)
+            g_ok = measurable & (g >= 0) & (g < self.n_columns)
+            g_ok &= ~self.unmeasurable[np.clip(g, 0, self.n_columns - 1)]
+            self._guess[ys, xs] = np.where(g_ok, g, -1)
         h, w = self._camera_shape  # type: ignore[misc]
         unsupported = 0
-        if self.neighbour_tolerance is not None:
-            cand = np.zeros((h, w), dtype=bool)
-            cand[ys[passed], xs[passed]] = True
-            both = self._column.copy()  # type: ignore[union-attr]
-            both[ys[passed], xs[passed]] = column[passed]
-            ok = supported(both, cand, self.neighbour_tolerance)[ys, xs]
-            unsupported = int((passed & ~ok).sum())
-            passed &= ok
+        if self.neighbour_tolerance is not None and passed.any():
+            ref = self._column.copy()  # type: ignore[union-attr]
+            ref[ys[passed], xs[passed]] = column[passed]
+            idx = np.nonzero(passed)[0]
+            ok = _kernels.support_at(ys[idx], xs[idx], column[idx], ref, self.neighbour_tolerance)
+            unsupported = int((~ok).sum())
+            passed[idx[~ok]] = False
         error_map = np.zeros((h, w), dtype=bool)
         error_map[ys[~passed], xs[~passed]] = True
         ry, rx = ys[passed], xs[passed]
+        # only open pixels are decoded: a verified column is never replaced or invalidated
         self._column[ry, rx] = column[passed]  # type: ignore[index]
         self._round_of[ry, rx] = self._round
         self._pending[ry, rx] = False
+        self._guess[ry, rx] = column[passed]
         lit_fraction = float(self._lit.mean())
-        result = RoundResult(
-            round=self._round, frames=int(f.shape[0]), calibration_frames=int(f.shape[0] - n),
-            checked=int(ys.size), resolved=int(ry.size), failing=int(self._pending.sum()),
-            unsupported=unsupported, lit_fraction=lit_fraction, error_map=error_map,
-        )
-        self._rounds.append(result)
         # decide whether to go on, and with which mask
         if not self._pending.any():
             self._stop = "all resolved" if (self._column >= 0).any() else "nothing to resolve"
-        elif result.resolved == 0:
+        elif ry.size == 0 and self.masking:
             self._stop = "no change"
         elif self._round >= self.max_rounds:
             self._stop = "round limit"
         else:
-            self._lit = self.next_mask()
+            self._lit = self.next_mask() if self.masking else np.ones_like(self._lit)
             if not self._lit.any():
                 self._stop = "nothing to light"
+        output = self._output()
+        result = RoundResult(
+            round=self._round, frames=int(f.shape[0]), calibration_frames=int(f.shape[0] - n),
+            checked=int(ys.size), resolved=int(ry.size), failing=int(self._pending.sum()),
+            unsupported=unsupported, lit_fraction=lit_fraction, error_map=error_map,
+            valid=int((output >= 0).sum()), decode_s=time.perf_counter() - t0,
+        )
+        self._rounds.append(result)
         self._expect = n + (0 if self.self_calibrated else 1)
         return result
+
+    def _output(self) -> np.ndarray:
+        """(H, W) int32 reported columns: verified pixels, plus (``keep_guess``) the open pixels whose
+        round-1 guess joins a verified pixel through a chain of neighbours with columns within the
+        support tolerance (`edge.edc._kernels.grow_guesses`)."""
+        if not self.keep_guess:
+            return self._column.copy()  # type: ignore[union-attr]
+        tol = self.neighbour_tolerance if self.neighbour_tolerance is not None else DEFAULT_NEIGHBOUR_TOLERANCE
+        return _kernels.grow_guesses(self._column, self._guess, self._pending & (self._guess >= 0), tol)
 
     def _contrast_ok(self, hi: np.ndarray, lo: np.ndarray) -> np.ndarray:
         """Bool: the pixel's contrast (max - min, or white - black) is over the mode's floor."""
@@ -493,9 +545,11 @@ class AdaptiveScan:
         self._require_started()
         if self._column is None:
             raise ValueError("no round decoded yet: call update() first")
+        column = self._output()
         return AdaptiveResult(
-            column=self._column.copy(), valid=self._column >= 0, round_of=self._round_of.copy(),
+            column=column, valid=column >= 0, round_of=self._round_of.copy(),
             rounds=list(self._rounds), stop_reason=self._stop or "in progress", scheme=self.scheme.name,
+            verified=self._column >= 0,
         )
 
 
