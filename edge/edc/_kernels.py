@@ -3,7 +3,11 @@
 A round of `edge.edc.adaptive.AdaptiveScan` touches only the camera pixels still open (a pixel
 list ``ys, xs``), never the full frame: gathering their samples, binarising, packing the word,
 the codebook look-up, the nearest codeword of a failing word and the neighbour-support test are
-O(open pixels x frames).  All kernels are exact integer / float32 re-implementations of the numpy
+O(open pixels x frames); round 1, where every pixel is open, uses the full-frame forms
+(`pack_words_full`, `extremes_full`: rows, then frames, then columns: sequential memory).
+The kernels are serial on purpose: each takes a few milliseconds at 640 x 480, and a parallel
+kernel on a busy machine waits for its slowest thread (measured 3-10x slower than serial with the
+service's other threads and processes competing for 2 cores).  All kernels are exact integer / float32 re-implementations of the numpy
 reference functions next to them (`edge.edc.lookup.lookup_columns`, `edge.edc.adaptive.supported`);
 tests compare the two.
 """
@@ -11,16 +15,16 @@ tests compare the two.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def gather_extremes(frames: np.ndarray, ys: np.ndarray, xs: np.ndarray, n: int):
     """(hi, lo) float32 (P,): max and min of frames[:n, ys[p], xs[p]] (self-calibrated levels)."""
     p_count = ys.size
     hi = np.empty(p_count, dtype=np.float32)
     lo = np.empty(p_count, dtype=np.float32)
-    for p in prange(p_count):
+    for p in range(p_count):
         y, x = ys[p], xs[p]
         a = np.float32(frames[0, y, x])
         b = a
@@ -35,21 +39,21 @@ def gather_extremes(frames: np.ndarray, ys: np.ndarray, xs: np.ndarray, n: int):
     return hi, lo
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def gather_pixels(image: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
     """(P,) float32 image[ys, xs]."""
     out = np.empty(ys.size, dtype=np.float32)
-    for p in prange(ys.size):
+    for p in range(ys.size):
         out[p] = np.float32(image[ys[p], xs[p]])
     return out
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def pack_words_at(frames: np.ndarray, start: int, n: int, ys: np.ndarray, xs: np.ndarray,
                   hi: np.ndarray, lo: np.ndarray) -> np.ndarray:
     """(P,) int64 words: bit i (frame start + i, MSB first) = sample > (hi + lo) / 2."""
     out = np.empty(ys.size, dtype=np.int64)
-    for p in prange(ys.size):
+    for p in range(ys.size):
         y, x = ys[p], xs[p]
         t = (hi[p] + lo[p]) * np.float32(0.5)
         w = np.int64(0)
@@ -68,11 +72,11 @@ def _popcount(v: np.int64) -> int:
     return c
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def nearest_codewords(words: np.ndarray, codewords: np.ndarray) -> np.ndarray:
     """(P,) int32 index of the codeword nearest in Hamming distance (lowest index on ties)."""
     out = np.empty(words.size, dtype=np.int32)
-    for p in prange(words.size):
+    for p in range(words.size):
         best, arg = 1 << 30, -1
         w = words[p]
         for c in range(codewords.size):
@@ -85,7 +89,7 @@ def nearest_codewords(words: np.ndarray, codewords: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def support_at(ys: np.ndarray, xs: np.ndarray, cols: np.ndarray, ref: np.ndarray, tolerance: int) -> np.ndarray:
     """(P,) bool: pixel (ys[p], xs[p]) with column cols[p] is supported by the column map ``ref``.
 
@@ -94,73 +98,124 @@ def support_at(ys: np.ndarray, xs: np.ndarray, cols: np.ndarray, ref: np.ndarray
     """
     h, w = ref.shape
     out = np.zeros(ys.size, dtype=np.bool_)
-    for p in prange(ys.size):
+    for p in range(ys.size):
         y, x, c = ys[p], xs[p], cols[p]
         if c < 0:
             continue
         near_h = False
         any_h = False
-        for dy in range(-1, 2):
-            yy = y + dy
-            if yy < 0 or yy >= h:
-                continue
-            for dx in (-1, 1):
-                xx = x + dx
-                if xx < 0 or xx >= w:
-                    continue
-                r = ref[yy, xx]
+        y0 = y - 1 if y > 0 else 0
+        y1 = y + 1 if y < h - 1 else h - 1
+        for yy in range(y0, y1 + 1):
+            if x > 0:
+                r = ref[yy, x - 1]
                 if r >= 0:
                     any_h = True
-                    if abs(r - c) <= tolerance:
+                    if r - c <= tolerance and c - r <= tolerance:
+                        near_h = True
+            if x < w - 1:
+                r = ref[yy, x + 1]
+                if r >= 0:
+                    any_h = True
+                    if r - c <= tolerance and c - r <= tolerance:
                         near_h = True
         if near_h:
             out[p] = True
         elif not any_h:
-            for dy in (-1, 1):
-                yy = y + dy
-                if 0 <= yy < h:
-                    r = ref[yy, x]
-                    if r >= 0 and abs(r - c) <= tolerance:
-                        out[p] = True
+            if y > 0:
+                r = ref[y - 1, x]
+                if r >= 0 and r - c <= tolerance and c - r <= tolerance:
+                    out[p] = True
+            if y < h - 1:
+                r = ref[y + 1, x]
+                if r >= 0 and r - c <= tolerance and c - r <= tolerance:
+                    out[p] = True
     return out
 
 
 @njit(cache=True)
-def grow_guesses(verified: np.ndarray, guess: np.ndarray, candidate: np.ndarray, tolerance: int) -> np.ndarray:
+def pack_words_full(frames: np.ndarray, start: int, n: int, hi: np.ndarray, lo: np.ndarray) -> np.ndarray:
+    """(H, W) int64 words of every pixel: bit i (frame start + i, MSB first) = sample > (hi + lo) / 2.
+
+    The full-frame form of `pack_words_at` (round 1 decodes every pixel): row by row,
+    frames then columns inside a row (sequential memory access).
+    """
+    _, h, w = frames.shape
+    out = np.zeros((h, w), dtype=np.int64)
+    for y in range(h):
+        t = np.empty(w, dtype=np.float32)
+        for x in range(w):
+            t[x] = (np.float32(hi[y, x]) + np.float32(lo[y, x])) * np.float32(0.5)
+        for i in range(n):
+            for x in range(w):
+                out[y, x] = (out[y, x] << 1) | (np.float32(frames[start + i, y, x]) > t[x])
+    return out
+
+
+@njit(cache=True)
+def extremes_full(frames: np.ndarray, n: int):
+    """(hi, lo) float32 (H, W): max and min over frames[:n] (row by row)."""
+    _, h, w = frames.shape
+    hi = np.empty((h, w), dtype=np.float32)
+    lo = np.empty((h, w), dtype=np.float32)
+    for y in range(h):
+        for x in range(w):
+            hi[y, x] = np.float32(frames[0, y, x])
+            lo[y, x] = hi[y, x]
+        for i in range(1, n):
+            for x in range(w):
+                v = np.float32(frames[i, y, x])
+                if v > hi[y, x]:
+                    hi[y, x] = v
+                if v < lo[y, x]:
+                    lo[y, x] = v
+    return hi, lo
+
+
+@njit(cache=True)
+def grow_guesses(verified: np.ndarray, guess: np.ndarray, cy: np.ndarray, cx: np.ndarray, tolerance: int) -> np.ndarray:
     """(H, W) int32: ``verified`` plus the candidate guesses reachable from it by region growing.
 
-    verified: (H, W) int32 columns (-1 = none); guess: (H, W) int32 candidate columns; candidate:
-    (H, W) bool.  Breadth-first from every verified pixel: an 8-neighbour candidate whose guess is
-    within ``tolerance`` codewords of the reported column of the pixel it is reached from is
-    reported too and grows further.  A guess is therefore kept only when a chain of smoothly
-    varying columns links it to a verified pixel (a surface continues; a wrong word jumps).
+    verified: (H, W) int32 columns (-1 = none); guess: (H, W) int32 columns of the candidates
+    (cy[p], cx[p]).  A candidate is reported (with its guess) when an 8-neighbour is reported with
+    a column within ``tolerance`` codewords, transitively from the verified pixels: a guess is
+    kept only when a chain of smoothly varying columns links it to a verified pixel (a surface
+    continues; a wrong word jumps).  Cost O(candidates), not O(H x W).
     """
     h, w = verified.shape
     out = verified.copy()
-    qy = np.empty(h * w, dtype=np.int32)
-    qx = np.empty(h * w, dtype=np.int32)
+    cand = np.zeros((h, w), dtype=np.bool_)
+    for p in range(cy.size):
+        if guess[cy[p], cx[p]] >= 0:
+            cand[cy[p], cx[p]] = True
+    qy = np.empty(cy.size, dtype=np.int64)
+    qx = np.empty(cy.size, dtype=np.int64)
     head, tail = 0, 0
-    for y in range(h):
-        for x in range(w):
-            if verified[y, x] >= 0:
-                qy[tail] = y
-                qx[tail] = x
-                tail += 1
+    for p in range(cy.size):  # seeds: candidates next to a verified pixel with a close column
+        y, x = cy[p], cx[p]
+        if not cand[y, x] or out[y, x] >= 0:
+            continue
+        g = guess[y, x]
+        hit = False
+        for yy in range(max(0, y - 1), min(h, y + 2)):
+            for xx in range(max(0, x - 1), min(w, x + 2)):
+                r = verified[yy, xx]
+                if r >= 0 and r - g <= tolerance and g - r <= tolerance:
+                    hit = True
+        if hit:
+            out[y, x] = g
+            qy[tail] = y
+            qx[tail] = x
+            tail += 1
     while head < tail:
         y, x = qy[head], qx[head]
         head += 1
         c = out[y, x]
-        for dy in range(-1, 2):
-            yy = y + dy
-            if yy < 0 or yy >= h:
-                continue
-            for dx in range(-1, 2):
-                xx = x + dx
-                if xx < 0 or xx >= w or (dy == 0 and dx == 0):
-                    continue
-                if candidate[yy, xx] and out[yy, xx] < 0:
+        for yy in range(max(0, y - 1), min(h, y + 2)):
+            for xx in range(max(0, x - 1), min(w, x + 2)):
+                if cand[yy, xx] and out[yy, xx] < 0:
                     g = guess[yy, xx]
-                    if g >= 0 and abs(g - c) <= tolerance:
+                    if g - c <= tolerance and c - g <= tolerance:
                         out[yy, xx] = g
                         qy[tail] = yy
                         qx[tail] = xx

@@ -350,11 +350,13 @@ class AdaptiveScan:
         n = self.scheme.n_frames
         m = n if self.self_calibrated else n + (2 if first else 1)
         out = np.zeros((m, self.height, self.projector_width), dtype=np.uint8)
-        on = lit.astype(np.uint8) * np.uint8(255)
+        rows = np.nonzero(lit.any(axis=1))[0]  # dark rows stay zero
+        on = lit[rows].astype(np.uint8) * np.uint8(255)
+        bits = (self._profiles > 0.5).astype(np.uint8)
         for i in range(n):
-            out[i] = (self._profiles[i] > 0.5).astype(np.uint8)[None, :] * on
+            out[i, rows] = bits[i][None, :] * on
         if not self.self_calibrated:
-            out[n] = on  # white (masked in rounds >= 2); the black frame stays all zero
+            out[n, rows] = on  # white (masked in rounds >= 2); the black frame stays all zero
         return out
 
     def noise_floor(self, level: np.ndarray) -> np.ndarray:
@@ -365,14 +367,19 @@ class AdaptiveScan:
         return np.float32(self.min_range_sigmas) * np.sqrt(var).astype(np.float32)
 
     # ------------------------------------------------------------------ rounds
-    def update(self, captured: np.ndarray, *, code: Code | str | None = None) -> RoundResult:
+    def update(self, captured: np.ndarray, *, code: Code | str | None = None,
+               guess: np.ndarray | None = None) -> RoundResult:
         """Decode the frames captured for the last frames handed out; fix the pixels that pass.
+
+        guess: round 1 only, optional (H, W) int columns (-1 = none) to keep for open pixels instead
+        of the scheme's own guess (the runtime passes its soft decoder's columns).
 
         captured: (m, H, W) camera frames in the order they were projected (patterns, then white
         [, black in round 1] when calibrated); uint8, uint16 or float.  code: optionally the code
         the frames were captured with; a different code than this scan's raises ValueError.
         """
         self._require_started()
+        given = guess
         if self._stop is not None:
             raise ValueError(f"adaptive scan is finished ({self._stop}); call start() for a new scan")
         if code is not None:
@@ -406,23 +413,31 @@ class AdaptiveScan:
             self._column = np.full((h, w), -1, dtype=np.int32)
             self._guess = np.full((h, w), -1, dtype=np.int32)
             self._round_of = np.zeros((h, w), dtype=np.int8)
-            if self.self_calibrated:
-                self._pending = self._contrast_ok(f[:n].max(axis=0), f[:n].min(axis=0))
-            else:
-                self._black = f[n + 1]
-                self._pending = self._contrast_ok(f[n], self._black)  # shadow pixels never become pending
         f = np.ascontiguousarray(f)
-        ys, xs = np.nonzero(self._pending)
-        if self.self_calibrated:
-            hi, lo = _kernels.gather_extremes(f, ys, xs, n)
+        if first:
+            if self.self_calibrated:
+                hi_img, lo_img = _kernels.extremes_full(f, n)
+            else:
+                self._black = np.ascontiguousarray(f[n + 1])
+                hi_img, lo_img = f[n], self._black
+            self._pending = self._contrast_ok(hi_img, lo_img)  # shadow pixels never become pending
+            ys, xs = np.nonzero(self._pending)
+            hi = hi_img[ys, xs].astype(np.float32)
+            lo = lo_img[ys, xs].astype(np.float32)
         else:
-            hi = _kernels.gather_pixels(f[n], ys, xs)
-            lo = _kernels.gather_pixels(np.ascontiguousarray(self._black), ys, xs)
-        if hasattr(self.scheme, "decide_at"):
-            column, passed, guess = self.scheme.decide_at(f, ys, xs, hi, lo)
+            ys, xs = np.nonzero(self._pending)
+            if self.self_calibrated:
+                hi, lo = _kernels.gather_extremes(f, ys, xs, n)
+            else:
+                hi = _kernels.gather_pixels(f[n], ys, xs)
+                lo = _kernels.gather_pixels(self._black, ys, xs)
+        if first and hasattr(self.scheme, "decide_full"):
+            column, passed, own_guess = self.scheme.decide_full(f, hi_img, lo_img, ys, xs)
+        elif hasattr(self.scheme, "decide_at"):
+            column, passed, own_guess = self.scheme.decide_at(f, ys, xs, hi, lo)
         else:
             column, passed = self.scheme.decide(f[:n, ys, xs], hi, lo)
-            guess = column
+            own_guess = column
         column = np.asarray(column, dtype=np.int32)
         measurable = self._contrast_ok(hi, lo)
         passed = passed & measurable & (column >= 0) & (column < self.n_columns)
@@ -430,7 +445,13 @@ class AdaptiveScan:
         passed &= ~self.unmeasurable[safe]
         passed &= self._lit[ys, np.minimum(safe * self.stripe, self.projector_width - 1)]
         if first:  # the single-pass guess (nearest codeword / majority) of every measurable pixel
-            g = np.asarray(guess, dtype=np.int32)
+            if given is not None:
+                g = np.asarray(given)
+                if g.shape != self._camera_shape:
+                    raise ValueError(f"guess must be a {self._camera_shape} column map like the frames, got {g.shape}")
+                g = g[ys, xs].astype(np.int32)
+            else:
+                g = np.asarray(own_guess, dtype=np.int32)
             g_ok = measurable & (g >= 0) & (g < self.n_columns)
             g_ok &= ~self.unmeasurable[np.clip(g, 0, self.n_columns - 1)]
             self._guess[ys, xs] = np.where(g_ok, g, -1)
@@ -463,7 +484,7 @@ class AdaptiveScan:
             self._lit = self.next_mask() if self.masking else np.ones_like(self._lit)
             if not self._lit.any():
                 self._stop = "nothing to light"
-        output = self._output()
+        output = self._out_cache = self._output()
         result = RoundResult(
             round=self._round, frames=int(f.shape[0]), calibration_frames=int(f.shape[0] - n),
             checked=int(ys.size), resolved=int(ry.size), failing=int(self._pending.sum()),
@@ -481,7 +502,8 @@ class AdaptiveScan:
         if not self.keep_guess:
             return self._column.copy()  # type: ignore[union-attr]
         tol = self.neighbour_tolerance if self.neighbour_tolerance is not None else DEFAULT_NEIGHBOUR_TOLERANCE
-        return _kernels.grow_guesses(self._column, self._guess, self._pending & (self._guess >= 0), tol)
+        gy, gx = np.nonzero(self._pending & (self._guess >= 0))
+        return _kernels.grow_guesses(self._column, self._guess, gy, gx, tol)
 
     def _contrast_ok(self, hi: np.ndarray, lo: np.ndarray) -> np.ndarray:
         """Bool: the pixel's contrast (max - min, or white - black) is over the mode's floor."""
@@ -493,42 +515,43 @@ class AdaptiveScan:
         return contrast > self.min_contrast
 
     def next_mask(self) -> np.ndarray:
-        """(H, Wp) bool projector pixels to light next round (rule: see the module docstring)."""
+        """(H, Wp) bool projector pixels to light next round (rule: see the module docstring).
+
+        Only the rows that still hold an open pixel are computed (every other row is dark).
+        """
         self._require_started()
         if self._column is None:
             return np.ones((self.height, self.projector_width), dtype=bool)
-        h, w = self._column.shape
-        resolved = self._column >= 0
-        claimed = np.zeros((h, self.n_columns), dtype=bool)
-        ys, xs = np.nonzero(resolved)
-        claimed[ys, self._column[ys, xs]] = True
-        if self.guard:
-            pend = self._pending
-            for nb_resolved, nb_pixel in (
-                (pend[:, 1:] & resolved[:, :-1], (0, -1)),   # resolved left neighbour of a failing pixel
-                (pend[:, :-1] & resolved[:, 1:], (0, 1)),    # resolved right neighbour
-            ):
-                gy, gx = np.nonzero(nb_resolved)
-                if nb_pixel[1] == -1:
-                    gx = gx  # failing pixel at gx + 1, neighbour at gx
-                else:
-                    gx = gx + 1  # failing pixel at gx, neighbour at gx + 1
-                claimed[gy, self._column[gy, gx]] = False
-        stripes = np.repeat(~claimed, self.stripe, axis=1)
         lit = np.zeros((self.height, self.projector_width), dtype=bool)
+        rows = np.nonzero(self._pending.any(axis=1))[0]
+        if rows.size == 0:
+            return lit
+        col = self._column[rows]
+        pend = self._pending[rows]
+        resolved = col >= 0
+        claimed = np.zeros((rows.size, self.n_columns), dtype=bool)
+        ys, xs = np.nonzero(resolved)
+        claimed[ys, col[ys, xs]] = True
+        if self.guard:
+            # the resolved left / right neighbour of an open pixel keeps its column lit
+            gy, gx = np.nonzero(pend[:, 1:] & resolved[:, :-1])
+            claimed[gy, col[gy, gx]] = False
+            gy, gx = np.nonzero(pend[:, :-1] & resolved[:, 1:])
+            claimed[gy, col[gy, gx + 1]] = False
+        stripes = np.repeat(~claimed, self.stripe, axis=1)
         width = min(self.projector_width, stripes.shape[1])
-        lit[:, :width] = stripes[:, :width]
-        rows_pending = self._pending.any(axis=1)
-        lit[~rows_pending] = False
+        sub = np.zeros((rows.size, self.projector_width), dtype=bool)
+        sub[:, :width] = stripes[:, :width]
         if self.disparity_band is not None:
             dmin, dmax = self.disparity_band
-            py, px = np.nonzero(self._pending)
+            py, px = np.nonzero(pend)
             lo = np.clip(px - dmax, 0, self.projector_width)
             hi = np.clip(px - dmin + 1, 0, self.projector_width)
-            diff = np.zeros((self.height, self.projector_width + 1), dtype=np.int32)
-            np.add.at(diff, (py, lo), 1)
-            np.add.at(diff, (py, hi), -1)
-            lit &= np.cumsum(diff, axis=1)[:, :-1] > 0
+            size = rows.size * (self.projector_width + 1)
+            diff = (np.bincount(py * (self.projector_width + 1) + lo, minlength=size)
+                    - np.bincount(py * (self.projector_width + 1) + hi, minlength=size))
+            sub &= np.cumsum(diff.reshape(rows.size, -1), axis=1)[:, :-1] > 0
+        lit[rows] = sub
         return lit
 
     def next_frames(self) -> np.ndarray | None:
@@ -545,7 +568,7 @@ class AdaptiveScan:
         self._require_started()
         if self._column is None:
             raise ValueError("no round decoded yet: call update() first")
-        column = self._output()
+        column = self._out_cache.copy()  # the state only changes in update()
         return AdaptiveResult(
             column=column, valid=column >= 0, round_of=self._round_of.copy(),
             rounds=list(self._rounds), stop_reason=self._stop or "in progress", scheme=self.scheme.name,

@@ -90,13 +90,25 @@ class EnsembleScheme:
                   start: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Sparse `decide` (see `edge.edc.scheme`); guess = the majority column (ties: the first code)."""
         from . import _kernels
+
+        return self._vote([_kernels.pack_words_at(frames, int(s), c.n, ys, xs, hi, lo)
+                           for c, s in zip(self.codes, self._starts(start))])
+
+    def decide_full(self, frames: np.ndarray, hi: np.ndarray, lo: np.ndarray, ys: np.ndarray, xs: np.ndarray,
+                    start: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`decide_at` for round 1 with (H, W) level images."""
+        from . import _kernels
+
+        return self._vote([_kernels.pack_words_full(frames, int(s), c.n, hi, lo)[ys, xs]
+                           for c, s in zip(self.codes, self._starts(start))])
+
+    def _starts(self, start: int) -> list[int]:
+        return list(start + np.cumsum([0] + [c.n for c in self.codes[:-1]]))
+
+    def _vote(self, words: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         from .lookup import membership_table
 
-        cols = []
-        for c in self.codes:
-            cols.append(membership_table(c)[_kernels.pack_words_at(frames, int(start), c.n, ys, xs, hi, lo)])
-            start += c.n
-        stack = np.stack(cols)
+        stack = np.stack([membership_table(c)[w] for c, w in zip(self.codes, words)])
         column, passed = ensemble_vote(stack, self.min_agree)
         guess = majority_column(stack)
         return column, passed, np.where(passed, column, guess).astype(np.int32)

@@ -85,7 +85,14 @@ class EdcScheme:
         hi, lo: (P,) float32 levels whose midpoint is the threshold.  Returns (column, passed, guess):
         guess = column where passed, else the nearest codeword in Hamming distance.
         """
-        words = _kernels.pack_words_at(frames, int(start), self.code.n, ys, xs, hi, lo)
+        return self._decide_words(_kernels.pack_words_at(frames, int(start), self.code.n, ys, xs, hi, lo))
+
+    def decide_full(self, frames: np.ndarray, hi: np.ndarray, lo: np.ndarray, ys: np.ndarray, xs: np.ndarray,
+                    start: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`decide_at` for round 1: hi, lo are (H, W) images, the words of the whole frame are packed at once."""
+        return self._decide_words(_kernels.pack_words_full(frames, int(start), self.code.n, hi, lo)[ys, xs])
+
+    def _decide_words(self, words: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         column = membership_table(self.code)[words]
         passed = column >= 0
         guess = column.copy()
