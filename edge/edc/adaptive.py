@@ -471,7 +471,6 @@ class AdaptiveScan:
         self._column[ry, rx] = column[passed]  # type: ignore[index]
         self._round_of[ry, rx] = self._round
         self._pending[ry, rx] = False
-        self._guess[ry, rx] = column[passed]
         lit_fraction = float(self._lit.mean())
         # decide whether to go on, and with which mask
         if not self._pending.any():
@@ -513,6 +512,14 @@ class AdaptiveScan:
         if self.self_calibrated:
             return contrast > self.noise_floor(hi_n)
         return contrast > self.min_contrast
+
+    @property
+    def guesses(self) -> np.ndarray:
+        """(H, W) int32 round-1 guess of every pixel over the floor (nearest codeword / majority), -1
+        elsewhere: what an unchecked single pass with this scan's binarisation reports."""
+        if self._column is None:
+            raise ValueError("no round decoded yet: call update() first")
+        return self._guess.copy()
 
     def next_mask(self) -> np.ndarray:
         """(H, Wp) bool projector pixels to light next round (rule: see the module docstring).

@@ -12,7 +12,10 @@ Pacing: frame i is released at ``start + i / rate_hz`` (``max_speed=True``: as s
 rendered).  A render thread works one stack ahead.  ``poses=K`` pre-renders K stacks of one
 motion period and cycles through them (fresh sequence numbers and timestamps), so that a benchmark
 measures the service and not the simulator.  Masked frames for the adaptive EDC loop are rendered
-on request for the scene of the stack that asked (`capture_masked`).
+on request for the scene of the stack that asked (`capture_masked`); without global illumination
+only the rows with a lit projector pixel are rendered, the dark rows read the stack's black frame.
+They are rendered outside the paced stream: a real projector-camera pair spends camera time on
+them (the service status reports ``frames_per_depth_map``).
 
 `PacedSensor` holds the machinery (render thread, pacing, poses, scene per stack) shared with the
 other simulated backends: `edge.sensors.dots` (dot projector), `edge.sensors.curtain` (light
@@ -263,7 +266,7 @@ class SimSensor(PacedSensor):
         """
         from edge.sim.render import has_global_illumination
 
-        if frames_in.ndim != 3 or has_global_illumination(scene) or self.source:
+        if frames_in.ndim != 3 or has_global_illumination(scene) or self.source or self.camera.defocus_sigma > 0:
             return self._capture(scene, frames_in, rng)
         lit_rows = np.nonzero(frames_in.any(axis=0).any(axis=1))[0]
         with self._lock:
