@@ -75,11 +75,13 @@ verified column is never replaced and never invalidated by a later round.  An op
 is replaced only by a decode that passes the check AND the neighbour support.  What a pixel
 reports while open (``keep_guess``, default on): its round-1 GUESS -- the nearest codeword of its
 word (the ensemble: the majority column), i.e. what an unchecked single pass reports -- where a
-verified neighbour supports that column (same rule and tolerance as above); otherwise nothing.
+chain of neighbours with columns within the support tolerance links it to a verified pixel (region
+growing from the verified pixels, `edge.edc._kernels.grow_guesses`); otherwise nothing.  A pixel
+reported once stays reported (its column can only be replaced by a verified decode).
 A correct pixel whose word failed the check (a bit flipped in a CRC bit, e.g. gray-10+crc5 under
 inter-reflection) therefore stays correct, and a wrong guess is kept only when it lies within the
-tolerance of a verified neighbour's column.  Verified pixels only accumulate, so the reported set
-only grows from round to round.
+tolerance of its neighbours' columns along such a chain.  Verified pixels only accumulate, so the
+reported set only grows from round to round.
 
 Termination
 -----------
@@ -412,6 +414,7 @@ class AdaptiveScan:
             h, w = self._camera_shape
             self._column = np.full((h, w), -1, dtype=np.int32)
             self._guess = np.full((h, w), -1, dtype=np.int32)
+            self._out_prev = None
             self._round_of = np.zeros((h, w), dtype=np.int8)
         f = np.ascontiguousarray(f)
         if first:
@@ -496,13 +499,20 @@ class AdaptiveScan:
 
     def _output(self) -> np.ndarray:
         """(H, W) int32 reported columns: verified pixels, plus (``keep_guess``) the open pixels whose
-        round-1 guess joins a verified pixel through a chain of neighbours with columns within the
-        support tolerance (`edge.edc._kernels.grow_guesses`)."""
+        round-1 guess joins a reported pixel through a chain of neighbours with columns within the
+        support tolerance (`edge.edc._kernels.grow_guesses`).  Growing starts from what the previous
+        round reported (with verified columns in place), so a reported pixel stays reported: a later
+        round can only replace its column by a verified one, never drop it."""
         if not self.keep_guess:
             return self._column.copy()  # type: ignore[union-attr]
         tol = self.neighbour_tolerance if self.neighbour_tolerance is not None else DEFAULT_NEIGHBOUR_TOLERANCE
-        gy, gx = np.nonzero(self._pending & (self._guess >= 0))
-        return _kernels.grow_guesses(self._column, self._guess, gy, gx, tol)
+        base = self._column.copy() if self._out_prev is None else self._out_prev.copy()  # type: ignore[union-attr]
+        verified = self._column >= 0  # type: ignore[operator]
+        base[verified] = self._column[verified]  # type: ignore[index]
+        gy, gx = np.nonzero(self._pending & (self._guess >= 0) & (base < 0))
+        out = _kernels.grow_guesses(base, self._guess, gy, gx, tol)
+        self._out_prev = out
+        return out
 
     def _contrast_ok(self, hi: np.ndarray, lo: np.ndarray) -> np.ndarray:
         """Bool: the pixel's contrast (max - min, or white - black) is over the mode's floor."""
