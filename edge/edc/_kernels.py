@@ -75,7 +75,14 @@ def _popcount(v: np.int64) -> int:
 @njit(cache=True)
 def nearest_codewords(words: np.ndarray, codewords: np.ndarray) -> np.ndarray:
     """(P,) int32 index of the codeword nearest in Hamming distance (lowest index on ties)."""
+    return nearest_codewords_distance(words, codewords)[0]
+
+
+@njit(cache=True)
+def nearest_codewords_distance(words: np.ndarray, codewords: np.ndarray):
+    """(index int32 (P,), Hamming distance int32 (P,)) of the nearest codeword (lowest index on ties)."""
     out = np.empty(words.size, dtype=np.int32)
+    dist = np.empty(words.size, dtype=np.int32)
     for p in range(words.size):
         best, arg = 1 << 30, -1
         w = words[p]
@@ -86,7 +93,8 @@ def nearest_codewords(words: np.ndarray, codewords: np.ndarray) -> np.ndarray:
                 if d == 0:
                     break
         out[p] = arg
-    return out
+        dist[p] = best
+    return out, dist
 
 
 @njit(cache=True)

@@ -73,8 +73,9 @@ Never worse than a single pass
 Only OPEN pixels are decoded in a round (the sparse pixel list of `edge.edc._kernels`); a
 verified column is never replaced and never invalidated by a later round.  An open pixel's column
 is replaced only by a decode that passes the check AND the neighbour support.  What a pixel
-reports while open (``keep_guess``, default on): its round-1 GUESS -- the nearest codeword of its
-word (the ensemble: the majority column), i.e. what an unchecked single pass reports -- where a
+reports while open (``keep_guess``, default on): its GUESS -- the nearest codeword of its word
+(the ensemble: the majority column), i.e. what an unchecked single pass reports; round 1's, or,
+for a pixel not reported yet (``update_guesses``, default on), the latest round's -- where a
 chain of neighbours with columns within the support tolerance links it to a verified pixel (region
 growing from the verified pixels, `edge.edc._kernels.grow_guesses`); otherwise nothing.  A pixel
 reported once stays reported (its column can only be replaced by a verified decode).
@@ -256,8 +257,10 @@ class AdaptiveScan:
         disparity_band: optional (min_disparity, max_disparity) to light only candidate columns.
         neighbour_tolerance: a passing pixel needs an 8-neighbour that passed with a column within
             this many codewords (None: no neighbour check).
-        keep_guess: an open pixel is reported with its round-1 guess (nearest codeword; ensemble
-            majority) where a verified neighbour supports that column (see "Never worse").
+        keep_guess: an open pixel is reported with its guess (nearest codeword; ensemble majority)
+            where a chain of neighbours links it to a verified pixel (see "Never worse").
+        update_guesses: an open pixel that is not reported yet takes each later round's guess
+            (measured with less indirect light) instead of keeping its round-1 guess.
         masking: False = the plain "re-project everything again" baseline: every round projects the
             full pattern set (nothing is switched off) until the round limit.
     """
@@ -268,7 +271,7 @@ class AdaptiveScan:
                  full_scale: float | None = None, guard: bool = True,
                  disparity_band: tuple[int, int] | None = None,
                  neighbour_tolerance: int | None = DEFAULT_NEIGHBOUR_TOLERANCE, keep_guess: bool = True,
-                 masking: bool = True) -> None:
+                 masking: bool = True, update_guesses: bool = True) -> None:
         self.scheme = _as_scheme(scheme)
         if int(projector_width) != projector_width or projector_width < 1:
             raise ValueError(f"projector_width must be a positive integer, got {projector_width!r}")
@@ -306,6 +309,7 @@ class AdaptiveScan:
         self.disparity_band = None if disparity_band is None else (int(disparity_band[0]), int(disparity_band[1]))
         self.neighbour_tolerance = None if neighbour_tolerance is None else int(neighbour_tolerance)
         self.keep_guess = bool(keep_guess)
+        self.update_guesses = bool(update_guesses)
         self.masking = bool(masking)
         self.n_columns = min(-(-self.projector_width // self.stripe), max(c.size for c in self.scheme.codes))
         self._profiles = self.scheme.profiles(self.projector_width, self.stripe)
@@ -425,8 +429,9 @@ class AdaptiveScan:
                 hi_img, lo_img = f[n], self._black
             self._pending = self._contrast_ok(hi_img, lo_img)  # shadow pixels never become pending
             ys, xs = np.nonzero(self._pending)
-            hi = hi_img[ys, xs].astype(np.float32)
-            lo = lo_img[ys, xs].astype(np.float32)
+            if not hasattr(self.scheme, "decide_full"):
+                hi = hi_img[ys, xs].astype(np.float32)
+                lo = lo_img[ys, xs].astype(np.float32)
         else:
             ys, xs = np.nonzero(self._pending)
             if self.self_calibrated:
@@ -442,11 +447,13 @@ class AdaptiveScan:
             column, passed = self.scheme.decide(f[:n, ys, xs], hi, lo)
             own_guess = column
         column = np.asarray(column, dtype=np.int32)
-        measurable = self._contrast_ok(hi, lo)
+        # round 1: every pending pixel is over the floor (that is what made it pending) and all is lit
+        measurable = np.ones(ys.size, dtype=bool) if first else self._contrast_ok(hi, lo)
         passed = passed & measurable & (column >= 0) & (column < self.n_columns)
         safe = np.clip(column, 0, self.n_columns - 1)
         passed &= ~self.unmeasurable[safe]
-        passed &= self._lit[ys, np.minimum(safe * self.stripe, self.projector_width - 1)]
+        if not first:
+            passed &= self._lit[ys, np.minimum(safe * self.stripe, self.projector_width - 1)]
         if first:  # the single-pass guess (nearest codeword / majority) of every measurable pixel
             if given is not None:
                 g = np.asarray(given)
@@ -458,13 +465,22 @@ class AdaptiveScan:
             g_ok = measurable & (g >= 0) & (g < self.n_columns)
             g_ok &= ~self.unmeasurable[np.clip(g, 0, self.n_columns - 1)]
             self._guess[ys, xs] = np.where(g_ok, g, -1)
+        elif self.update_guesses and self._out_prev is not None:
+            # an open pixel not reported yet takes this round's guess (measured with less indirect
+            # light); a reported pixel keeps the guess it is reported with
+            g = np.asarray(own_guess, dtype=np.int32)
+            free = (self._out_prev[ys, xs] < 0) & measurable & (g >= 0) & (g < self.n_columns)
+            free &= ~self.unmeasurable[np.clip(g, 0, self.n_columns - 1)]
+            free &= self._lit[ys, np.minimum(np.clip(g, 0, self.n_columns - 1) * self.stripe, self.projector_width - 1)]
+            self._guess[ys[free], xs[free]] = g[free]
         h, w = self._camera_shape  # type: ignore[misc]
         unsupported = 0
         if self.neighbour_tolerance is not None and passed.any():
-            ref = self._column.copy()  # type: ignore[union-attr]
-            ref[ys[passed], xs[passed]] = column[passed]
             idx = np.nonzero(passed)[0]
-            ok = _kernels.support_at(ys[idx], xs[idx], column[idx], ref, self.neighbour_tolerance)
+            py, px, pc = ys[idx], xs[idx], column[idx]
+            ref = self._column.copy()  # type: ignore[union-attr]
+            ref[py, px] = pc
+            ok = _kernels.support_at(py, px, pc, ref, self.neighbour_tolerance)
             unsupported = int((~ok).sum())
             passed[idx[~ok]] = False
         error_map = np.zeros((h, w), dtype=bool)

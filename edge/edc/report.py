@@ -26,6 +26,7 @@ MAP_CODES = ("xor02-10+crc5", "gray-10+crc5")
 RUNS: tuple[tuple[str, str, str, int, dict[str, Any]], ...] = (
     ("xor02+crc5 adaptive", "xor02-10+crc5", "self", 3, {}),
     ("xor02+crc5 re-project all", "xor02-10+crc5", "self", 3, {"masking": False}),
+    ("xor02+crc5 adaptive, round-1 guesses only", "xor02-10+crc5", "self", 3, {"update_guesses": False}),
     ("xor02+crc5 adaptive, no guesses", "xor02-10+crc5", "self", 3, {"keep_guess": False}),
     ("xor02+crc5 adaptive, calibrated", "xor02-10+crc5", "calibrated", 3, {}),
     ("gray+crc5 adaptive", "gray-10+crc5", "self", 3, {}),
@@ -204,7 +205,9 @@ def run_report(out_dir: Path, *, width: int = 256, height: int = 192, seed: int 
         "every pixel with white - black > 0.03 reported). Lit columns are fractions of the lit pixels; unlit = "
         "count of unlit pixels reported (all wrong). 're-project all' = the plain loop that projects the full "
         "pattern set again each round (nothing switched off) with the same acceptance rule, at the same 45 frames. "
-        "'no guesses' = the loop without keeping the round-1 guesses (only verified pixels reported).", "",
+        "'no guesses' = the loop without keeping guesses (only verified pixels reported); 'round-1 guesses only' = "
+        "open pixels keep their round-1 guess instead of taking later rounds' (fewer wrong pixels, fewer correct "
+        "ones). **(lower)** marks a row that ends below its single pass.", "",
         f"Defaults: binarisation `self` (no calibration frames, noise floor {DEFAULT_MIN_RANGE_SIGMAS:g} sigma), "
         f"neighbour support tolerance {DEFAULT_NEIGHBOUR_TOLERANCE} codewords. Gupta ensemble codes: gray-10, "
         f"maxminsw-10 (narrowest stripe {int(stripe_widths(mm).min())}), xor04-10, xor02-10.", "",
@@ -225,7 +228,8 @@ def run_report(out_dir: Path, *, width: int = 256, height: int = 192, seed: int 
         "neighbour within the tolerance agrees) is never replaced or invalidated. An open pixel keeps its round-1 "
         "guess (nearest codeword; ensemble: majority) where a chain of neighbours with columns within the tolerance "
         "links it to verified pixels; a later round replaces it only with a decode that passes the check and the "
-        "neighbour support.",
+        "neighbour support. An open pixel not reported yet takes the latest round's guess (measured with less "
+        "indirect light).",
         "- **Binarisation `self` (default)**: no white/black frames; each pixel is thresholded at the midpoint of its "
         "own min and max sample over the round's frames (a round costs n frames: 3 x 15 = 45). Column 0 (all-zero "
         "codeword) is never decoded in this mode.",
