@@ -543,3 +543,25 @@ def test_bench_service_sets_edc_rounds(tmp_path):
     spec.loader.exec_module(bench)
     path, profile = bench.edc_profile("sim-dlp", 3, tmp_path)
     assert path.exists() and profile.edc.rounds == 3 and profile.name == "sim-dlp"
+
+
+@pytest.mark.parametrize("mode", ["self", "calibrated"])
+def test_fast_round1_matches_the_generic_path(mode):
+    from edge.edc.evaluate import gi_camera, make_gi_scene
+    from edge.sim import capture
+
+    scene, cam = make_gi_scene("scatter-s4", 96, 64, seed=0), gi_camera("scatter-s4")
+    results = []
+    for fast in (True, False):
+        scan = AdaptiveScan(EDC, int(scene.geometry.projector_width), scene.height, full_scale=cam.levels,
+                            binarisation=mode, noise=(cam.sigma_r, cam.sigma_s))
+        scan.fast_round1 = fast
+        gen = np.random.default_rng(4)
+        frames = scan.start()
+        while frames is not None:
+            scan.update(capture(scene, frames, cam, rng=gen, exposure=cam.frame_exposure(15)))
+            frames = scan.next_frames()
+        results.append((scan.result(), scan.guesses))
+    (a, ga), (b, gb) = results
+    assert np.array_equal(a.column, b.column) and np.array_equal(a.round_of, b.round_of)
+    assert np.array_equal(ga, gb) and [r.resolved for r in a.rounds] == [r.resolved for r in b.rounds]

@@ -229,3 +229,78 @@ def grow_guesses(verified: np.ndarray, guess: np.ndarray, cy: np.ndarray, cx: np
                         qx[tail] = xx
                         tail += 1
     return out
+
+
+@njit(cache=True)
+def round1_words(frames: np.ndarray, n: int, white: np.ndarray, black: np.ndarray, self_cal: bool,
+                 full_scale: float, min_contrast: float, sigmas: float, sr2: float, ss2: float, q: float,
+                 table: np.ndarray, codewords: np.ndarray, given: np.ndarray, has_given: bool,
+                 n_columns: int, unmeasurable: np.ndarray):
+    """Round 1 of an EDC scheme in one pass over the frame (every pixel is open in round 1).
+
+    Per pixel: levels (self: min / max of the n frames; else white / black), the floor (self:
+    ``(max - min) / fs > sigmas * sqrt(sr2 + ss2 * max / fs + q)``; else ``(white - black) / fs >
+    min_contrast``), the word (bit = sample > midpoint, frame 0 = MSB), the membership table,
+    and the guess (``given`` if has_given, else the column or the nearest codeword), each checked
+    against ``n_columns`` and ``unmeasurable``.  Returns (candidate column (H, W) int32: a
+    codeword's column, -1 where the word is none or the pixel under the floor; open (H, W) bool:
+    over the floor; guess (H, W) int32).
+    """
+    _, h, w = frames.shape
+    cand = np.full((h, w), -1, dtype=np.int32)
+    pend = np.zeros((h, w), dtype=np.bool_)
+    guess = np.full((h, w), -1, dtype=np.int32)
+    hi = np.empty(w, dtype=np.float32)
+    lo = np.empty(w, dtype=np.float32)
+    word = np.zeros(w, dtype=np.int64)
+    fs = np.float32(full_scale)
+    for y in range(h):
+        if self_cal:
+            for x in range(w):
+                hi[x] = np.float32(frames[0, y, x])
+                lo[x] = hi[x]
+            for i in range(1, n):
+                for x in range(w):
+                    v = np.float32(frames[i, y, x])
+                    if v > hi[x]:
+                        hi[x] = v
+                    if v < lo[x]:
+                        lo[x] = v
+        else:
+            for x in range(w):
+                hi[x] = np.float32(white[y, x])
+                lo[x] = np.float32(black[y, x])
+        for x in range(w):
+            word[x] = 0
+        for i in range(n):
+            for x in range(w):
+                t = (hi[x] + lo[x]) * np.float32(0.5)
+                word[x] = (word[x] << 1) | (np.float32(frames[i, y, x]) > t)
+        for x in range(w):
+            hn = hi[x] / fs
+            contrast = hn - lo[x] / fs
+            if self_cal:
+                level = hn if hn > 0 else np.float32(0.0)
+                ok = contrast > np.float32(sigmas) * np.float32(np.sqrt(sr2 + ss2 * level + q))
+            else:
+                ok = contrast > min_contrast
+            if not ok:
+                continue
+            pend[y, x] = True
+            c = table[word[x]]
+            if c >= n_columns or (c >= 0 and unmeasurable[c]):
+                c = -1
+            cand[y, x] = c
+            if has_given:
+                g = given[y, x]
+            elif c >= 0:
+                g = c
+            else:
+                best, g = 1 << 30, -1
+                for k in range(codewords.size):
+                    d = _popcount(word[x] ^ codewords[k])
+                    if d < best:
+                        best, g = d, k
+            if g >= 0 and g < n_columns and not unmeasurable[g]:
+                guess[y, x] = g
+    return cand, pend, guess

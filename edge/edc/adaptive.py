@@ -310,6 +310,7 @@ class AdaptiveScan:
         self.neighbour_tolerance = None if neighbour_tolerance is None else int(neighbour_tolerance)
         self.keep_guess = bool(keep_guess)
         self.update_guesses = bool(update_guesses)
+        self.fast_round1 = True  # round 1 of an EdcScheme in one kernel pass (False: the generic path)
         self.masking = bool(masking)
         self.n_columns = min(-(-self.projector_width // self.stripe), max(c.size for c in self.scheme.codes))
         self._profiles = self.scheme.profiles(self.projector_width, self.stripe)
@@ -421,6 +422,8 @@ class AdaptiveScan:
             self._out_prev = None
             self._round_of = np.zeros((h, w), dtype=np.int8)
         f = np.ascontiguousarray(f)
+        if first and self.fast_round1 and isinstance(self.scheme, EdcScheme):
+            return self._round1_edc(f, given, t0)
         if first:
             if self.self_calibrated:
                 hi_img, lo_img = _kernels.extremes_full(f, n)
@@ -490,11 +493,54 @@ class AdaptiveScan:
         self._column[ry, rx] = column[passed]  # type: ignore[index]
         self._round_of[ry, rx] = self._round
         self._pending[ry, rx] = False
+        return self._finish_round(f, checked=int(ys.size), resolved=int(ry.size), unsupported=unsupported,
+                                  error_map=error_map, t0=t0)
+
+    def _round1_edc(self, f: np.ndarray, given: np.ndarray | None, t0: float) -> RoundResult:
+        """Round 1 of an `EdcScheme` in one pass over the frame (`edge.edc._kernels.round1_words`);
+        the same decisions as the generic path (tests compare them)."""
+        from .lookup import membership_table, packed_codewords
+
+        n = self.scheme.n_frames
+        if given is not None:
+            given = np.asarray(given)
+            if given.shape != self._camera_shape:
+                raise ValueError(f"guess must be a {self._camera_shape} column map like the frames, got {given.shape}")
+            given = np.ascontiguousarray(given, dtype=np.int32)
+        if not self.self_calibrated:
+            self._black = np.ascontiguousarray(f[n + 1])
+        white = f[n] if not self.self_calibrated else f[0]
+        black = self._black if not self.self_calibrated else f[0]
+        sr, ss = self.noise
+        fs = float(self.full_scale)  # type: ignore[arg-type]
+        q = 1.0 / (12.0 * fs ** 2) if fs > 1.0 else 0.0
+        cand, pend, guess = _kernels.round1_words(
+            f, n, np.ascontiguousarray(white), black, self.self_calibrated, fs, self.min_contrast,
+            self.min_range_sigmas, sr * sr, ss * ss, q, membership_table(self.scheme.code),
+            packed_codewords(self.scheme.code), given if given is not None else np.zeros((1, 1), np.int32),
+            given is not None, self.n_columns, self.unmeasurable)
+        self._pending = pend
+        self._guess = guess
+        py, px = np.nonzero(cand >= 0)
+        pc = cand[py, px]
+        unsupported = 0
+        if self.neighbour_tolerance is not None and py.size:
+            ok = _kernels.support_at(py, px, pc, cand, self.neighbour_tolerance)
+            unsupported = int((~ok).sum())
+            py, px, pc = py[ok], px[ok], pc[ok]
+        self._column[py, px] = pc  # type: ignore[index]
+        self._round_of[py, px] = 1
+        self._pending[py, px] = False
+        return self._finish_round(f, checked=int(pend.sum()), resolved=int(py.size), unsupported=unsupported,
+                                  error_map=self._pending.copy(), t0=t0)
+
+    def _finish_round(self, f: np.ndarray, *, checked: int, resolved: int, unsupported: int,
+                      error_map: np.ndarray, t0: float) -> RoundResult:
+        n = self.scheme.n_frames
         lit_fraction = float(self._lit.mean())
-        # decide whether to go on, and with which mask
         if not self._pending.any():
-            self._stop = "all resolved" if (self._column >= 0).any() else "nothing to resolve"
-        elif ry.size == 0 and self.masking:
+            self._stop = "all resolved" if (self._column >= 0).any() else "nothing to resolve"  # type: ignore[operator]
+        elif resolved == 0 and self.masking:
             self._stop = "no change"
         elif self._round >= self.max_rounds:
             self._stop = "round limit"
@@ -505,7 +551,7 @@ class AdaptiveScan:
         output = self._out_cache = self._output()
         result = RoundResult(
             round=self._round, frames=int(f.shape[0]), calibration_frames=int(f.shape[0] - n),
-            checked=int(ys.size), resolved=int(ry.size), failing=int(self._pending.sum()),
+            checked=checked, resolved=resolved, failing=int(self._pending.sum()),
             unsupported=unsupported, lit_fraction=lit_fraction, error_map=error_map,
             valid=int((output >= 0).sum()), decode_s=time.perf_counter() - t0,
         )
