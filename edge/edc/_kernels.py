@@ -304,3 +304,44 @@ def round1_words(frames: np.ndarray, n: int, white: np.ndarray, black: np.ndarra
             if g >= 0 and g < n_columns and not unmeasurable[g]:
                 guess[y, x] = g
     return cand, pend, guess
+
+
+@njit(cache=True)
+def support_full(cand: np.ndarray, tolerance: int) -> np.ndarray:
+    """(H, W) bool: `support_at` for every pixel with cand >= 0, against the map ``cand`` itself."""
+    h, w = cand.shape
+    out = np.zeros((h, w), dtype=np.bool_)
+    for y in range(h):
+        y0 = y - 1 if y > 0 else 0
+        y1 = y + 1 if y < h - 1 else h - 1
+        for x in range(w):
+            c = cand[y, x]
+            if c < 0:
+                continue
+            near_h = False
+            any_h = False
+            for yy in range(y0, y1 + 1):
+                if x > 0:
+                    r = cand[yy, x - 1]
+                    if r >= 0:
+                        any_h = True
+                        if r - c <= tolerance and c - r <= tolerance:
+                            near_h = True
+                if x < w - 1:
+                    r = cand[yy, x + 1]
+                    if r >= 0:
+                        any_h = True
+                        if r - c <= tolerance and c - r <= tolerance:
+                            near_h = True
+            if near_h:
+                out[y, x] = True
+            elif not any_h:
+                if y > 0:
+                    r = cand[y - 1, x]
+                    if r >= 0 and r - c <= tolerance and c - r <= tolerance:
+                        out[y, x] = True
+                if y < h - 1:
+                    r = cand[y + 1, x]
+                    if r >= 0 and r - c <= tolerance and c - r <= tolerance:
+                        out[y, x] = True
+    return out

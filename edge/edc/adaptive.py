@@ -519,20 +519,19 @@ class AdaptiveScan:
             self.min_range_sigmas, sr * sr, ss * ss, q, membership_table(self.scheme.code),
             packed_codewords(self.scheme.code), given if given is not None else np.zeros((1, 1), np.int32),
             given is not None, self.n_columns, self.unmeasurable)
-        self._pending = pend
         self._guess = guess
-        py, px = np.nonzero(cand >= 0)
-        pc = cand[py, px]
+        passed = cand >= 0
         unsupported = 0
-        if self.neighbour_tolerance is not None and py.size:
-            ok = _kernels.support_at(py, px, pc, cand, self.neighbour_tolerance)
-            unsupported = int((~ok).sum())
-            py, px, pc = py[ok], px[ok], pc[ok]
-        self._column[py, px] = pc  # type: ignore[index]
-        self._round_of[py, px] = 1
-        self._pending[py, px] = False
-        return self._finish_round(f, checked=int(pend.sum()), resolved=int(py.size), unsupported=unsupported,
-                                  error_map=self._pending.copy(), t0=t0)
+        if self.neighbour_tolerance is not None:
+            ok = _kernels.support_full(cand, self.neighbour_tolerance)
+            unsupported = int(np.count_nonzero(passed)) - int(np.count_nonzero(ok))
+            passed = ok
+        self._column = np.where(passed, cand, np.int32(-1)).astype(np.int32)
+        self._round_of = passed.astype(np.int8)
+        checked = int(np.count_nonzero(pend))
+        self._pending = pend & ~passed
+        return self._finish_round(f, checked=checked, resolved=int(np.count_nonzero(passed)),
+                                  unsupported=unsupported, error_map=self._pending.copy(), t0=t0)
 
     def _finish_round(self, f: np.ndarray, *, checked: int, resolved: int, unsupported: int,
                       error_map: np.ndarray, t0: float) -> RoundResult:

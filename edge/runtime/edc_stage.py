@@ -52,6 +52,16 @@ class EdcOutcome:
     open_pixels: tuple[int, ...]
 
 
+def _stacked(images: list) -> np.ndarray:
+    """(m, H, W) of m frame images without a copy when they are the consecutive planes of one array."""
+    base = images[0].base if images else None
+    if (isinstance(base, np.ndarray) and base.ndim == 3 and base.shape[0] == len(images)
+            and base.flags.c_contiguous
+            and all(im.base is base and im.ctypes.data == base[i].ctypes.data for i, im in enumerate(images))):
+        return base
+    return np.stack(images)
+
+
 def make_scan(pipeline: Any, height: int):
     """The `AdaptiveScan` of a pipeline's profile (calibrated binarisation, the disparity band)."""
     from edge.edc import AdaptiveScan
@@ -88,7 +98,7 @@ def run_adaptive(pipeline: Any, stack: Any, images: np.ndarray, column: np.ndarr
         captured = masked_capture(stack.stack, edc_round, frames)
         capture_ms.append((time.perf_counter() - t0) * 1e3)
         extra.extend(captured)
-        r = scan.update(np.stack([f.image for f in captured]))
+        r = scan.update(_stacked([f.image for f in captured]))
         round_ms.append(r.decode_s * 1e3)
         open_px.append(r.failing)
         edc_round += 1
