@@ -37,10 +37,7 @@ def _run(args: argparse.Namespace) -> int:
     from edge.edc.gupta import EnsembleScheme
 
     w, h = parse_size(args.size)
-    try:
-        scene = make_gi_scene(args.scene, w, h, args.seed)
-    except ValueError as exc:
-        raise SystemExit(f"edge edc run: {exc}") from None
+    scene = make_gi_scene(args.scene, w, h, args.seed)  # an unknown label: ValueError (one line, exit 2)
     scheme = EnsembleScheme() if args.code == "gupta" else args.code
     opts = {"neighbour_tolerance": None} if args.no_support else {}
     score, result = score_loop(scene, gi_camera(args.scene), scheme, rng=args.seed + 2, max_rounds=args.rounds,
