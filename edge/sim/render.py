@@ -117,6 +117,29 @@ def projector_irradiance(scene: Scene, projector_frames: np.ndarray, camera: Cam
     return e
 
 
+#: A rows= render of at most this many samples (frames x rows x columns) runs in numpy: a parallel
+#: kernel's start-up dominates such small jobs (the few rows of a masked EDC round).
+SMALL_RENDER = 1 << 21
+
+
+def _warp_nearest_small(patterns: np.ndarray, column_int: np.ndarray, row_of: np.ndarray) -> np.ndarray:
+    """`warp_nearest` (same result); numpy for small jobs."""
+    m, _, wp = patterns.shape
+    if m * column_int.size > SMALL_RENDER:
+        return warp_nearest(patterns, column_int, row_of)
+    ok = (column_int >= 0) & (column_int < wp)
+    e = patterns[:, row_of[:, None], np.clip(column_int, 0, wp - 1)]
+    return np.where(ok[None], e, np.float32(0.0)).astype(np.float32)
+
+
+def _expose_numpy(e: np.ndarray, albedo: np.ndarray, scale_projector: float, ambient_level: float,
+                  normals: np.ndarray, sigma_r2: float, sigma_s2: float, levels: float, dtype) -> np.ndarray:
+    """`expose` in numpy (float64 arithmetic like the kernel), for small renders."""
+    clean = np.maximum(albedo.astype(np.float64)[None] * (scale_projector * e.astype(np.float64) + ambient_level), 0.0)
+    noisy = clean + np.sqrt(sigma_r2 + sigma_s2 * clean) * normals
+    return np.clip(np.floor(noisy * levels + 0.5), 0.0, levels).astype(dtype)
+
+
 def has_global_illumination(scene: Scene) -> bool:
     """True when a pixel's light depends on other pixels (scattering or inter-reflection)."""
     return bool(scene.has_scattering or (scene.interreflection is not None and scene.interreflection.strength > 0))
@@ -159,8 +182,13 @@ def capture(scene: Scene, projector_frames: np.ndarray, camera: CameraModel, *,
         if camera.sampling == "linear":
             e = warp_linear(patterns, np.ascontiguousarray(scene.column[r]), row_of)
         else:
-            e = warp_nearest(patterns, np.ascontiguousarray(scene.column_int[r]), row_of)
+            e = _warp_nearest_small(patterns, np.ascontiguousarray(scene.column_int[r]), row_of)
         albedo = np.ascontiguousarray(albedo[r])
+        if e.size <= SMALL_RENDER:
+            normals = gen.standard_normal(e.shape, dtype=np.float32)
+            return _expose_numpy(e, albedo, float(t * camera.projector), float(t * camera.ambient), normals,
+                                 float(camera.sigma_r**2), float(camera.sigma_s**2), float(camera.levels),
+                                 np.uint8 if camera.bits == 8 else np.uint16)
     normals = gen.standard_normal(e.shape, dtype=np.float32)
     out = np.empty(e.shape, dtype=np.uint8 if camera.bits == 8 else np.uint16)
     expose(e, albedo, float(t * camera.projector), float(t * camera.ambient), normals,
