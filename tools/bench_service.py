@@ -1,6 +1,6 @@
 """Benchmark the depth service end to end: `edge run` in one process, a zenoh subscriber in this one.
 
-    python tools/bench_service.py [--profile sim-dlp] [--seconds 60] [--warmup 10] [--poses 8]
+    python tools/bench_service.py [--profile sim-dlp] [--seconds 60] [--warmup 10] [--poses 8] [--edc-rounds 3]
 
 The service runs the simulated sensor at the profile's camera rate (default sim-dlp: 640x480 @
 120 fps, ecc-22-10, soft decoding; 24 frames per depth map = 5 stacks/s offered), with
@@ -12,7 +12,10 @@ the CPU during the measurement, records MCAP, and publishes on zenoh (loopback).
 * p50 / p99 latency from the last camera frame of a stack to the depth sample arriving here
   (another process), after ``--warmup`` seconds;
 * CPU use of the service process (user + system time / wall time; 1.0 = one core);
-* recording throughput (MB/s written) and frames lost by the recorder (must be 0).
+* recording throughput (MB/s written) and frames lost by the recorder (must be 0);
+* with ``--edc-rounds R``: the profile's ``edc.rounds`` set to R (a copy of the profile in a
+  temporary folder), the EDC rounds run per stack, the decode time of each round and the masked
+  frames' capture time, and the camera frames per depth map (from the service's status).
 
 Timings depend on the machine and on whatever else runs on it; quote the command with the figures.
 """
@@ -46,6 +49,24 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def edc_profile(name: str, rounds: int, folder: Path):
+    """(path, profile): a copy of profile ``name`` with ``[edc] rounds = rounds``, written to ``folder``."""
+    import re
+
+    from edge.profiles import load_profile
+    from edge.profiles.files import find_profile
+
+    text = find_profile(name).read_text()
+    new, count = re.subn(r"(\[edc\][^\[]*?\brounds\s*=\s*)\d+", lambda m: m.group(1) + str(int(rounds)), text)
+    if count != 1:
+        new = text + f"\n[edc]\nrounds = {int(rounds)}\n" if "[edc]" not in text else None
+    if new is None:
+        raise SystemExit(f"bench_service: cannot set edc.rounds in profile {name!r}")
+    path = folder / f"{Path(str(name)).stem}-edc{int(rounds)}.toml"
+    path.write_text(new)
+    return path, load_profile(path)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--profile", default="sim-dlp")
@@ -53,6 +74,8 @@ def main() -> int:
     ap.add_argument("--warmup", type=float, default=10.0, help="seconds ignored at the start (numba load, poses)")
     ap.add_argument("--poses", type=int, default=8)
     ap.add_argument("--no-record", action="store_true")
+    ap.add_argument("--edc-rounds", type=int, default=None, metavar="R",
+                    help="run with the profile's edc.rounds set to R (adaptive EDC re-projection rounds)")
     args = ap.parse_args()
 
     from edge.io.zenoh import DepthSubscriber
@@ -61,9 +84,12 @@ def main() -> int:
     profile = load_profile(args.profile)
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     tmp = tempfile.TemporaryDirectory()
+    profile_arg = args.profile
+    if args.edc_rounds is not None:
+        profile_arg, profile = edc_profile(args.profile, args.edc_rounds, Path(tmp.name))
     out = Path(tmp.name) / "bench.mcap"
     total = args.warmup + args.seconds
-    cmd = [sys.executable, "-m", "edge.cli", "run", "--profile", args.profile, "--seconds", f"{total:.1f}",
+    cmd = [sys.executable, "-m", "edge.cli", "run", "--profile", str(profile_arg), "--seconds", f"{total:.1f}",
            "--poses", str(args.poses), "--listen", endpoint, "--quiet"]
     if not args.no_record:
         cmd += ["--record", str(out)]
@@ -118,6 +144,10 @@ def main() -> int:
     if not args.no_record:
         print(f"recording                  : {size / 1e6:.1f} MB in {total:.0f} s = {size / 1e6 / total:.2f} MB/s; "
               f"frames written {rec.get('frames_written')}, frames lost {rec.get('frames_lost')}")
+    if profile.edc.rounds:
+        print(f"EDC (edc.rounds = {profile.edc.rounds}): rounds run {final.get('edc_rounds')} (last stack), "
+              f"decode ms per round {final.get('edc_round_ms')}, masked capture ms {final.get('edc_capture_ms')}, "
+              f"frames per depth map {final.get('frames_per_depth_map')}")
     print("final status: " + json.dumps({k: final.get(k) for k in ("fps", "stacks_complete", "stacks_decoded",
                                                                   "stacks_dropped", "errors")}))
     return 0

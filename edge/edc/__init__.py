@@ -3,8 +3,11 @@
 Public API::
 
     AdaptiveScan(scheme, projector_width, height, *, stripe=1, max_rounds=3, binarisation="self",
-                 neighbour_tolerance=3, noise=(sigma_r, sigma_s), ...)
-        .start() -> frames; .update(captured) -> RoundResult; .next_frames() -> frames | None; .result()
+                 neighbour_tolerance=3, noise=(sigma_r, sigma_s), keep_guess=True, masking=True, ...)
+        .start() -> frames; .update(captured[, guess=]) -> RoundResult; .next_frames() -> frames | None;
+        .result(); .guesses (round-1 single-pass columns)
+        Only open pixels are decoded per round (sparse kernels, `edge.edc._kernels`); verified
+        columns are never replaced; reported pixels stay reported (never worse than round 1).
     run_adaptive(scene, camera, scheme, *, rng=0, stripe=1, max_rounds=3, ...) -> AdaptiveResult
     EdcScheme(code), EnsembleScheme(codes=None, min_agree=2), gupta_codes(k), ensemble_vote(columns)
     maxminsw_code(k=10) -> Code (family "maxminsw"; k = 10: cyclic, every stripe >= 7 columns)

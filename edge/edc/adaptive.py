@@ -68,16 +68,34 @@ neighbouring pixels see neighbouring projector columns; a chance codeword agrees
 with probability ~(2 tol + 1) / 2**k per passing neighbour.  An unsupported pixel fails this round
 (it is re-measured if rounds are left).  ``neighbour_tolerance=None`` switches the check off.
 
+Never worse than a single pass
+------------------------------
+Only OPEN pixels are decoded in a round (the sparse pixel list of `edge.edc._kernels`); a
+verified column is never replaced and never invalidated by a later round.  An open pixel's column
+is replaced only by a decode that passes the check AND the neighbour support.  What a pixel
+reports while open (``keep_guess``, default on): its GUESS -- the nearest codeword of its word
+(the ensemble: the majority column), i.e. what an unchecked single pass reports; round 1's, or,
+for a pixel not reported yet (``update_guesses``, default on), the latest round's -- where a
+chain of neighbours with columns within the support tolerance links it to a verified pixel (region
+growing from the verified pixels, `edge.edc._kernels.grow_guesses`); otherwise nothing.  A pixel
+reported once stays reported (its column can only be replaced by a verified decode).
+A correct pixel whose word failed the check (a bit flipped in a CRC bit, e.g. gray-10+crc5 under
+inter-reflection) therefore stays correct, and a wrong guess is kept only when it lies within the
+tolerance of its neighbours' columns along such a chain.  Verified pixels only accumulate, so the
+reported set only grows from round to round.
+
 Termination
 -----------
 The loop stops when no failing pixel is left, when a round resolved no new pixel ("no pixel
 changes"; repeating the same illumination would only resample noise), when the next mask would
-light nothing, or at ``max_rounds``.  A scene where nothing can be resolved therefore stops after
+light nothing, or at ``max_rounds``.  Without masking (the re-project-everything baseline) a round
+that resolves nothing does not stop the loop: only the round limit does.  A scene where nothing can be resolved therefore stops after
 round 1 with every pixel invalid.
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -85,6 +103,7 @@ import numpy as np
 
 from edge.codes import Code
 
+from . import _kernels
 from .scheme import EdcScheme, unmeasurable_columns
 
 DEFAULT_MIN_CONTRAST = 0.03  # calibrated mode: shadow floor on white - black, fraction of full scale
@@ -109,6 +128,8 @@ class RoundResult:
         unsupported: pixels whose word was a lit codeword but that no passing neighbour supported.
         lit_fraction: fraction of projector pixels lit by this round's pattern frames.
         error_map: (H, W) bool, True where a pixel was checked this round and failed.
+        valid: pixels reported valid after this round (verified + supported guesses).
+        decode_s: seconds `update` spent on this round (decode of the open pixels, mask).
     """
 
     round: int
@@ -120,6 +141,8 @@ class RoundResult:
     unsupported: int
     lit_fraction: float
     error_map: np.ndarray
+    valid: int = 0
+    decode_s: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,7 +152,9 @@ class AdaptiveResult:
     Attributes:
         column: (H, W) int32 decoded codeword index (projector column // stripe), -1 = invalid.
         valid: (H, W) bool, column >= 0.
-        round_of: (H, W) int8, round in which the pixel was resolved (0 = never).
+        round_of: (H, W) int8, round in which the pixel was verified (0 = never).
+        verified: (H, W) bool, the column passed the check and neighbour support in some round
+            (the other valid pixels kept their round-1 guess because verified neighbours support it).
         rounds: per-round results.
         stop_reason: "all resolved", "nothing to resolve" (no pixel over the shadow floor), "no change",
             "round limit" or "nothing to light".
@@ -142,6 +167,7 @@ class AdaptiveResult:
     stop_reason: str
     scheme: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    verified: np.ndarray | None = None
 
     @property
     def frames_per_round(self) -> list[int]:
@@ -231,6 +257,12 @@ class AdaptiveScan:
         disparity_band: optional (min_disparity, max_disparity) to light only candidate columns.
         neighbour_tolerance: a passing pixel needs an 8-neighbour that passed with a column within
             this many codewords (None: no neighbour check).
+        keep_guess: an open pixel is reported with its guess (nearest codeword; ensemble majority)
+            where a chain of neighbours links it to a verified pixel (see "Never worse").
+        update_guesses: an open pixel that is not reported yet takes each later round's guess
+            (measured with less indirect light) instead of keeping its round-1 guess.
+        masking: False = the plain "re-project everything again" baseline: every round projects the
+            full pattern set (nothing is switched off) until the round limit.
     """
 
     def __init__(self, scheme: Any, projector_width: int, height: int, *, stripe: int = 1, max_rounds: int = 3,
@@ -238,7 +270,8 @@ class AdaptiveScan:
                  min_range_sigmas: float = DEFAULT_MIN_RANGE_SIGMAS, noise: tuple[float, float] = DEFAULT_NOISE,
                  full_scale: float | None = None, guard: bool = True,
                  disparity_band: tuple[int, int] | None = None,
-                 neighbour_tolerance: int | None = DEFAULT_NEIGHBOUR_TOLERANCE) -> None:
+                 neighbour_tolerance: int | None = DEFAULT_NEIGHBOUR_TOLERANCE, keep_guess: bool = True,
+                 masking: bool = True, update_guesses: bool = True) -> None:
         self.scheme = _as_scheme(scheme)
         if int(projector_width) != projector_width or projector_width < 1:
             raise ValueError(f"projector_width must be a positive integer, got {projector_width!r}")
@@ -275,6 +308,10 @@ class AdaptiveScan:
         self.guard = bool(guard)
         self.disparity_band = None if disparity_band is None else (int(disparity_band[0]), int(disparity_band[1]))
         self.neighbour_tolerance = None if neighbour_tolerance is None else int(neighbour_tolerance)
+        self.keep_guess = bool(keep_guess)
+        self.update_guesses = bool(update_guesses)
+        self.fast_round1 = True  # round 1 of an EdcScheme in one kernel pass (False: the generic path)
+        self.masking = bool(masking)
         self.n_columns = min(-(-self.projector_width // self.stripe), max(c.size for c in self.scheme.codes))
         self._profiles = self.scheme.profiles(self.projector_width, self.stripe)
         # columns a self-calibrated round cannot decode (constant word over the round's frames)
@@ -320,11 +357,13 @@ class AdaptiveScan:
         n = self.scheme.n_frames
         m = n if self.self_calibrated else n + (2 if first else 1)
         out = np.zeros((m, self.height, self.projector_width), dtype=np.uint8)
-        on = lit.astype(np.uint8) * np.uint8(255)
+        rows = np.nonzero(lit.any(axis=1))[0]  # dark rows stay zero
+        on = lit[rows].astype(np.uint8) * np.uint8(255)
+        bits = (self._profiles > 0.5).astype(np.uint8)
         for i in range(n):
-            out[i] = (self._profiles[i] > 0.5).astype(np.uint8)[None, :] * on
+            out[i, rows] = bits[i][None, :] * on
         if not self.self_calibrated:
-            out[n] = on  # white (masked in rounds >= 2); the black frame stays all zero
+            out[n, rows] = on  # white (masked in rounds >= 2); the black frame stays all zero
         return out
 
     def noise_floor(self, level: np.ndarray) -> np.ndarray:
@@ -335,14 +374,19 @@ class AdaptiveScan:
         return np.float32(self.min_range_sigmas) * np.sqrt(var).astype(np.float32)
 
     # ------------------------------------------------------------------ rounds
-    def update(self, captured: np.ndarray, *, code: Code | str | None = None) -> RoundResult:
+    def update(self, captured: np.ndarray, *, code: Code | str | None = None,
+               guess: np.ndarray | None = None) -> RoundResult:
         """Decode the frames captured for the last frames handed out; fix the pixels that pass.
+
+        guess: round 1 only, optional (H, W) int columns (-1 = none) to keep for open pixels instead
+        of the scheme's own guess (the runtime passes its soft decoder's columns).
 
         captured: (m, H, W) camera frames in the order they were projected (patterns, then white
         [, black in round 1] when calibrated); uint8, uint16 or float.  code: optionally the code
         the frames were captured with; a different code than this scan's raises ValueError.
         """
         self._require_started()
+        given = guess
         if self._stop is not None:
             raise ValueError(f"adaptive scan is finished ({self._stop}); call start() for a new scan")
         if code is not None:
@@ -367,69 +411,169 @@ class AdaptiveScan:
             raise ValueError(f"captured frames must be integer or float, got dtype {f.dtype}")
         self._round += 1
         first = self._round == 1
+        t0 = time.perf_counter()
         if first:
             self._camera_shape = f.shape[1:]
             if self.full_scale is None:
                 self.full_scale = float(np.iinfo(f.dtype).max) if np.issubdtype(f.dtype, np.integer) else 1.0
             h, w = self._camera_shape
             self._column = np.full((h, w), -1, dtype=np.int32)
+            self._guess = np.full((h, w), -1, dtype=np.int32)
+            self._out_prev = None
             self._round_of = np.zeros((h, w), dtype=np.int8)
+        f = np.ascontiguousarray(f)
+        if first and self.fast_round1 and isinstance(self.scheme, EdcScheme):
+            return self._round1_edc(f, given, t0)
+        if first:
             if self.self_calibrated:
-                self._pending = self._contrast_ok(f[:n].max(axis=0), f[:n].min(axis=0))
+                hi_img, lo_img = _kernels.extremes_full(f, n)
             else:
-                self._black = f[n + 1].astype(np.float32)
-                self._pending = self._contrast_ok(f[n], self._black)  # shadow pixels never become pending
-        ys, xs = np.nonzero(self._pending)
-        pf = f[:n, ys, xs]
-        if self.self_calibrated:
-            hi = pf.max(axis=0).astype(np.float32) if ys.size else np.zeros(0, np.float32)
-            lo = pf.min(axis=0).astype(np.float32) if ys.size else np.zeros(0, np.float32)
+                self._black = np.ascontiguousarray(f[n + 1])
+                hi_img, lo_img = f[n], self._black
+            self._pending = self._contrast_ok(hi_img, lo_img)  # shadow pixels never become pending
+            ys, xs = np.nonzero(self._pending)
+            if not hasattr(self.scheme, "decide_full"):
+                hi = hi_img[ys, xs].astype(np.float32)
+                lo = lo_img[ys, xs].astype(np.float32)
         else:
-            hi = f[n, ys, xs].astype(np.float32)
-            lo = self._black[ys, xs]
-        column, passed = self.scheme.decide(pf, hi, lo)
-        column = column.astype(np.int32)
-        passed = passed & self._contrast_ok(hi, lo)
-        passed &= (column >= 0) & (column < self.n_columns)
+            ys, xs = np.nonzero(self._pending)
+            if self.self_calibrated:
+                hi, lo = _kernels.gather_extremes(f, ys, xs, n)
+            else:
+                hi = _kernels.gather_pixels(f[n], ys, xs)
+                lo = _kernels.gather_pixels(self._black, ys, xs)
+        if first and hasattr(self.scheme, "decide_full"):
+            column, passed, own_guess = self.scheme.decide_full(f, hi_img, lo_img, ys, xs)
+        elif hasattr(self.scheme, "decide_at"):
+            column, passed, own_guess = self.scheme.decide_at(f, ys, xs, hi, lo)
+        else:
+            column, passed = self.scheme.decide(f[:n, ys, xs], hi, lo)
+            own_guess = column
+        column = np.asarray(column, dtype=np.int32)
+        # round 1: every pending pixel is over the floor (that is what made it pending) and all is lit
+        measurable = np.ones(ys.size, dtype=bool) if first else self._contrast_ok(hi, lo)
+        passed = passed & measurable & (column >= 0) & (column < self.n_columns)
         safe = np.clip(column, 0, self.n_columns - 1)
         passed &= ~self.unmeasurable[safe]
-        passed &= self._lit[ys, np.minimum(safe * self.stripe, self.projector_width - 1)]
+        if not first:
+            passed &= self._lit[ys, np.minimum(safe * self.stripe, self.projector_width - 1)]
+        if first:  # the single-pass guess (nearest codeword / majority) of every measurable pixel
+            if given is not None:
+                g = np.asarray(given)
+                if g.shape != self._camera_shape:
+                    raise ValueError(f"guess must be a {self._camera_shape} column map like the frames, got {g.shape}")
+                g = g[ys, xs].astype(np.int32)
+            else:
+                g = np.asarray(own_guess, dtype=np.int32)
+            g_ok = measurable & (g >= 0) & (g < self.n_columns)
+            g_ok &= ~self.unmeasurable[np.clip(g, 0, self.n_columns - 1)]
+            self._guess[ys, xs] = np.where(g_ok, g, -1)
+        elif self.update_guesses and self._out_prev is not None:
+            # an open pixel not reported yet takes this round's guess (measured with less indirect
+            # light); a reported pixel keeps the guess it is reported with
+            g = np.asarray(own_guess, dtype=np.int32)
+            free = (self._out_prev[ys, xs] < 0) & measurable & (g >= 0) & (g < self.n_columns)
+            free &= ~self.unmeasurable[np.clip(g, 0, self.n_columns - 1)]
+            free &= self._lit[ys, np.minimum(np.clip(g, 0, self.n_columns - 1) * self.stripe, self.projector_width - 1)]
+            self._guess[ys[free], xs[free]] = g[free]
         h, w = self._camera_shape  # type: ignore[misc]
         unsupported = 0
-        if self.neighbour_tolerance is not None:
-            cand = np.zeros((h, w), dtype=bool)
-            cand[ys[passed], xs[passed]] = True
-            both = self._column.copy()  # type: ignore[union-attr]
-            both[ys[passed], xs[passed]] = column[passed]
-            ok = supported(both, cand, self.neighbour_tolerance)[ys, xs]
-            unsupported = int((passed & ~ok).sum())
-            passed &= ok
+        if self.neighbour_tolerance is not None and passed.any():
+            idx = np.nonzero(passed)[0]
+            py, px, pc = ys[idx], xs[idx], column[idx]
+            ref = self._column.copy()  # type: ignore[union-attr]
+            ref[py, px] = pc
+            ok = _kernels.support_at(py, px, pc, ref, self.neighbour_tolerance)
+            unsupported = int((~ok).sum())
+            passed[idx[~ok]] = False
         error_map = np.zeros((h, w), dtype=bool)
         error_map[ys[~passed], xs[~passed]] = True
         ry, rx = ys[passed], xs[passed]
+        # only open pixels are decoded: a verified column is never replaced or invalidated
         self._column[ry, rx] = column[passed]  # type: ignore[index]
         self._round_of[ry, rx] = self._round
         self._pending[ry, rx] = False
+        return self._finish_round(f, checked=int(ys.size), resolved=int(ry.size), unsupported=unsupported,
+                                  error_map=error_map, t0=t0)
+
+    def _round1_edc(self, f: np.ndarray, given: np.ndarray | None, t0: float) -> RoundResult:
+        """Round 1 of an `EdcScheme` in one pass over the frame (`edge.edc._kernels.round1_words`);
+        the same decisions as the generic path (tests compare them)."""
+        from .lookup import membership_table, packed_codewords
+
+        n = self.scheme.n_frames
+        if given is not None:
+            given = np.asarray(given)
+            if given.shape != self._camera_shape:
+                raise ValueError(f"guess must be a {self._camera_shape} column map like the frames, got {given.shape}")
+            given = np.ascontiguousarray(given, dtype=np.int32)
+        if not self.self_calibrated:
+            self._black = np.ascontiguousarray(f[n + 1])
+        white = f[n] if not self.self_calibrated else f[0]
+        black = self._black if not self.self_calibrated else f[0]
+        sr, ss = self.noise
+        fs = float(self.full_scale)  # type: ignore[arg-type]
+        q = 1.0 / (12.0 * fs ** 2) if fs > 1.0 else 0.0
+        cand, pend, guess = _kernels.round1_words(
+            f, n, np.ascontiguousarray(white), black, self.self_calibrated, fs, self.min_contrast,
+            self.min_range_sigmas, sr * sr, ss * ss, q, membership_table(self.scheme.code),
+            packed_codewords(self.scheme.code), given if given is not None else np.zeros((1, 1), np.int32),
+            given is not None, self.n_columns, self.unmeasurable)
+        self._guess = guess
+        passed = cand >= 0
+        unsupported = 0
+        if self.neighbour_tolerance is not None:
+            ok = _kernels.support_full(cand, self.neighbour_tolerance)
+            unsupported = int(np.count_nonzero(passed)) - int(np.count_nonzero(ok))
+            passed = ok
+        self._column = np.where(passed, cand, np.int32(-1)).astype(np.int32)
+        self._round_of = passed.astype(np.int8)
+        checked = int(np.count_nonzero(pend))
+        self._pending = pend & ~passed
+        return self._finish_round(f, checked=checked, resolved=int(np.count_nonzero(passed)),
+                                  unsupported=unsupported, error_map=self._pending.copy(), t0=t0)
+
+    def _finish_round(self, f: np.ndarray, *, checked: int, resolved: int, unsupported: int,
+                      error_map: np.ndarray, t0: float) -> RoundResult:
+        n = self.scheme.n_frames
         lit_fraction = float(self._lit.mean())
-        result = RoundResult(
-            round=self._round, frames=int(f.shape[0]), calibration_frames=int(f.shape[0] - n),
-            checked=int(ys.size), resolved=int(ry.size), failing=int(self._pending.sum()),
-            unsupported=unsupported, lit_fraction=lit_fraction, error_map=error_map,
-        )
-        self._rounds.append(result)
-        # decide whether to go on, and with which mask
         if not self._pending.any():
-            self._stop = "all resolved" if (self._column >= 0).any() else "nothing to resolve"
-        elif result.resolved == 0:
+            self._stop = "all resolved" if (self._column >= 0).any() else "nothing to resolve"  # type: ignore[operator]
+        elif resolved == 0 and self.masking:
             self._stop = "no change"
         elif self._round >= self.max_rounds:
             self._stop = "round limit"
         else:
-            self._lit = self.next_mask()
+            self._lit = self.next_mask() if self.masking else np.ones_like(self._lit)
             if not self._lit.any():
                 self._stop = "nothing to light"
+        output = self._out_cache = self._output()
+        result = RoundResult(
+            round=self._round, frames=int(f.shape[0]), calibration_frames=int(f.shape[0] - n),
+            checked=checked, resolved=resolved, failing=int(self._pending.sum()),
+            unsupported=unsupported, lit_fraction=lit_fraction, error_map=error_map,
+            valid=int((output >= 0).sum()), decode_s=time.perf_counter() - t0,
+        )
+        self._rounds.append(result)
         self._expect = n + (0 if self.self_calibrated else 1)
         return result
+
+    def _output(self) -> np.ndarray:
+        """(H, W) int32 reported columns: verified pixels, plus (``keep_guess``) the open pixels whose
+        round-1 guess joins a reported pixel through a chain of neighbours with columns within the
+        support tolerance (`edge.edc._kernels.grow_guesses`).  Growing starts from what the previous
+        round reported (with verified columns in place), so a reported pixel stays reported: a later
+        round can only replace its column by a verified one, never drop it."""
+        if not self.keep_guess:
+            return self._column.copy()  # type: ignore[union-attr]
+        tol = self.neighbour_tolerance if self.neighbour_tolerance is not None else DEFAULT_NEIGHBOUR_TOLERANCE
+        base = self._column.copy() if self._out_prev is None else self._out_prev.copy()  # type: ignore[union-attr]
+        verified = self._column >= 0  # type: ignore[operator]
+        base[verified] = self._column[verified]  # type: ignore[index]
+        gy, gx = np.nonzero(self._pending & (self._guess >= 0) & (base < 0))
+        out = _kernels.grow_guesses(base, self._guess, gy, gx, tol)
+        self._out_prev = out
+        return out
 
     def _contrast_ok(self, hi: np.ndarray, lo: np.ndarray) -> np.ndarray:
         """Bool: the pixel's contrast (max - min, or white - black) is over the mode's floor."""
@@ -440,43 +584,52 @@ class AdaptiveScan:
             return contrast > self.noise_floor(hi_n)
         return contrast > self.min_contrast
 
+    @property
+    def guesses(self) -> np.ndarray:
+        """(H, W) int32 round-1 guess of every pixel over the floor (nearest codeword / majority), -1
+        elsewhere: what an unchecked single pass with this scan's binarisation reports."""
+        if self._column is None:
+            raise ValueError("no round decoded yet: call update() first")
+        return self._guess.copy()
+
     def next_mask(self) -> np.ndarray:
-        """(H, Wp) bool projector pixels to light next round (rule: see the module docstring)."""
+        """(H, Wp) bool projector pixels to light next round (rule: see the module docstring).
+
+        Only the rows that still hold an open pixel are computed (every other row is dark).
+        """
         self._require_started()
         if self._column is None:
             return np.ones((self.height, self.projector_width), dtype=bool)
-        h, w = self._column.shape
-        resolved = self._column >= 0
-        claimed = np.zeros((h, self.n_columns), dtype=bool)
-        ys, xs = np.nonzero(resolved)
-        claimed[ys, self._column[ys, xs]] = True
-        if self.guard:
-            pend = self._pending
-            for nb_resolved, nb_pixel in (
-                (pend[:, 1:] & resolved[:, :-1], (0, -1)),   # resolved left neighbour of a failing pixel
-                (pend[:, :-1] & resolved[:, 1:], (0, 1)),    # resolved right neighbour
-            ):
-                gy, gx = np.nonzero(nb_resolved)
-                if nb_pixel[1] == -1:
-                    gx = gx  # failing pixel at gx + 1, neighbour at gx
-                else:
-                    gx = gx + 1  # failing pixel at gx, neighbour at gx + 1
-                claimed[gy, self._column[gy, gx]] = False
-        stripes = np.repeat(~claimed, self.stripe, axis=1)
         lit = np.zeros((self.height, self.projector_width), dtype=bool)
+        rows = np.nonzero(self._pending.any(axis=1))[0]
+        if rows.size == 0:
+            return lit
+        col = self._column[rows]
+        pend = self._pending[rows]
+        resolved = col >= 0
+        claimed = np.zeros((rows.size, self.n_columns), dtype=bool)
+        ys, xs = np.nonzero(resolved)
+        claimed[ys, col[ys, xs]] = True
+        if self.guard:
+            # the resolved left / right neighbour of an open pixel keeps its column lit
+            gy, gx = np.nonzero(pend[:, 1:] & resolved[:, :-1])
+            claimed[gy, col[gy, gx]] = False
+            gy, gx = np.nonzero(pend[:, :-1] & resolved[:, 1:])
+            claimed[gy, col[gy, gx + 1]] = False
+        stripes = np.repeat(~claimed, self.stripe, axis=1)
         width = min(self.projector_width, stripes.shape[1])
-        lit[:, :width] = stripes[:, :width]
-        rows_pending = self._pending.any(axis=1)
-        lit[~rows_pending] = False
+        sub = np.zeros((rows.size, self.projector_width), dtype=bool)
+        sub[:, :width] = stripes[:, :width]
         if self.disparity_band is not None:
             dmin, dmax = self.disparity_band
-            py, px = np.nonzero(self._pending)
+            py, px = np.nonzero(pend)
             lo = np.clip(px - dmax, 0, self.projector_width)
             hi = np.clip(px - dmin + 1, 0, self.projector_width)
-            diff = np.zeros((self.height, self.projector_width + 1), dtype=np.int32)
-            np.add.at(diff, (py, lo), 1)
-            np.add.at(diff, (py, hi), -1)
-            lit &= np.cumsum(diff, axis=1)[:, :-1] > 0
+            size = rows.size * (self.projector_width + 1)
+            diff = (np.bincount(py * (self.projector_width + 1) + lo, minlength=size)
+                    - np.bincount(py * (self.projector_width + 1) + hi, minlength=size))
+            sub &= np.cumsum(diff.reshape(rows.size, -1), axis=1)[:, :-1] > 0
+        lit[rows] = sub
         return lit
 
     def next_frames(self) -> np.ndarray | None:
@@ -493,9 +646,11 @@ class AdaptiveScan:
         self._require_started()
         if self._column is None:
             raise ValueError("no round decoded yet: call update() first")
+        column = self._out_cache.copy()  # the state only changes in update()
         return AdaptiveResult(
-            column=self._column.copy(), valid=self._column >= 0, round_of=self._round_of.copy(),
+            column=column, valid=column >= 0, round_of=self._round_of.copy(),
             rounds=list(self._rounds), stop_reason=self._stop or "in progress", scheme=self.scheme.name,
+            verified=self._column >= 0,
         )
 
 

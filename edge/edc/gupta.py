@@ -54,6 +54,13 @@ def ensemble_vote(columns: np.ndarray, min_agree: int = 2) -> tuple[np.ndarray, 
     return np.where(accepted, column, -1).astype(np.int32), accepted
 
 
+def majority_column(columns: np.ndarray) -> np.ndarray:
+    """(P,) int32: the column most codes give (ties: the earliest code's); what an unchecked pass reports."""
+    stack = np.asarray(columns)
+    votes = ((stack[:, None, :] == stack[None, :, :]) & (stack[None, :, :] >= 0)).sum(axis=1)
+    return stack[votes.argmax(axis=0), np.arange(stack.shape[1])].astype(np.int32)
+
+
 class EnsembleScheme:
     """Scheme for `AdaptiveScan`: project several codes back to back, accept where ``min_agree`` agree."""
 
@@ -78,6 +85,33 @@ class EnsembleScheme:
             cols.append(lookup_columns(frames[start:start + c.n], white, black, c))
             start += c.n
         return ensemble_vote(np.stack(cols), self.min_agree)
+
+    def decide_at(self, frames: np.ndarray, ys: np.ndarray, xs: np.ndarray, hi: np.ndarray, lo: np.ndarray,
+                  start: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Sparse `decide` (see `edge.edc.scheme`); guess = the majority column (ties: the first code)."""
+        from . import _kernels
+
+        return self._vote([_kernels.pack_words_at(frames, int(s), c.n, ys, xs, hi, lo)
+                           for c, s in zip(self.codes, self._starts(start))])
+
+    def decide_full(self, frames: np.ndarray, hi: np.ndarray, lo: np.ndarray, ys: np.ndarray, xs: np.ndarray,
+                    start: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`decide_at` for round 1 with (H, W) level images."""
+        from . import _kernels
+
+        return self._vote([_kernels.pack_words_full(frames, int(s), c.n, hi, lo)[ys, xs]
+                           for c, s in zip(self.codes, self._starts(start))])
+
+    def _starts(self, start: int) -> list[int]:
+        return list(start + np.cumsum([0] + [c.n for c in self.codes[:-1]]))
+
+    def _vote(self, words: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        from .lookup import membership_table
+
+        stack = np.stack([membership_table(c)[w] for c, w in zip(self.codes, words)])
+        column, passed = ensemble_vote(stack, self.min_agree)
+        guess = majority_column(stack)
+        return column, passed, np.where(passed, column, guess).astype(np.int32)
 
     def __repr__(self) -> str:
         return f"EnsembleScheme({[c.name for c in self.codes]}, min_agree={self.min_agree})"

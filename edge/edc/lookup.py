@@ -38,6 +38,19 @@ def _table(code: Code) -> np.ndarray:
     return table
 
 
+@functools.lru_cache(maxsize=32)
+def _packed(code: Code) -> np.ndarray:
+    weights = np.left_shift(1, np.arange(code.n - 1, -1, -1, dtype=np.int64))
+    words = code.codebook.astype(np.int64) @ weights
+    words.setflags(write=False)
+    return words
+
+
+def packed_codewords(code: Code) -> np.ndarray:
+    """(size,) int64 codeword of each column packed like `membership_table` (frame 0 = MSB)."""
+    return _packed(code)
+
+
 def membership_table(code: Code) -> np.ndarray:
     """(2**n,) int32: column whose codeword packs to each integer (frame 0 = MSB), -1 if none."""
     return _table(code)

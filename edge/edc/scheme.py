@@ -9,8 +9,16 @@ acceptance rule.  `AdaptiveScan` drives any object with this interface:
     profiles(projector_width, stripe) -> (n_frames, projector_width) float32 in [0, 1]
     decide(frames, white, black) -> (column int32 (P,), passed bool (P,))
 
+and optionally the sparse fast path the loop prefers when present:
+
+    decide_at(frames, ys, xs, hi, lo) -> (column int32 (P,), passed bool (P,), guess int32 (P,))
+
 ``frames`` is (n_frames, P) samples of P camera pixels, ``white``/``black`` (P,) their
-calibration samples.  `EdcScheme` accepts a pixel when its binarised word is a codeword (the
+calibration samples.  ``decide_at`` reads the samples of the P open pixels ``(ys, xs)`` straight
+from the (m, H, W) round frames (no gather of the full frame) and also returns each pixel's best
+GUESS (the nearest codeword of a failing word; the ensemble's majority column): the column a
+conventional single pass would report, which the loop may keep where verified neighbours support
+it.  `EdcScheme` accepts a pixel when its binarised word is a codeword (the
 parameter-free CRC check); `edge.edc.gupta.EnsembleScheme` accepts it when two of four codes agree.
 """
 
@@ -20,7 +28,8 @@ import numpy as np
 
 from edge.codes import Code, get_code
 
-from .lookup import lookup_columns, membership_table
+from . import _kernels
+from .lookup import lookup_columns, membership_table, packed_codewords
 
 
 def code_profiles(code: Code, projector_width: int, stripe: int) -> np.ndarray:
@@ -68,6 +77,29 @@ class EdcScheme:
     def decide(self, frames: np.ndarray, white: np.ndarray, black: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         column = lookup_columns(frames, white, black, self.code)
         return column, column >= 0
+
+    def decide_at(self, frames: np.ndarray, ys: np.ndarray, xs: np.ndarray, hi: np.ndarray, lo: np.ndarray,
+                  start: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Sparse `decide` over the pixels (ys, xs) of (m, H, W) ``frames`` (code frames from ``start``).
+
+        hi, lo: (P,) float32 levels whose midpoint is the threshold.  Returns (column, passed, guess):
+        guess = column where passed, else the nearest codeword in Hamming distance.
+        """
+        return self._decide_words(_kernels.pack_words_at(frames, int(start), self.code.n, ys, xs, hi, lo))
+
+    def decide_full(self, frames: np.ndarray, hi: np.ndarray, lo: np.ndarray, ys: np.ndarray, xs: np.ndarray,
+                    start: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`decide_at` for round 1: hi, lo are (H, W) images, the words of the whole frame are packed at once."""
+        return self._decide_words(_kernels.pack_words_full(frames, int(start), self.code.n, hi, lo)[ys, xs])
+
+    def _decide_words(self, words: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        column = membership_table(self.code)[words]
+        passed = column >= 0
+        guess = column.copy()
+        bad = np.nonzero(~passed)[0]
+        if bad.size:
+            guess[bad] = _kernels.nearest_codewords(words[bad], packed_codewords(self.code))
+        return column.astype(np.int32), passed, guess.astype(np.int32)
 
     def __repr__(self) -> str:
         return f"EdcScheme({self.code!r})"

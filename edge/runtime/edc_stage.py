@@ -1,50 +1,111 @@
 """The adaptive EDC stage of `DepthPipeline` (profile ``edc.rounds`` > 0), on `edge.edc.AdaptiveScan`.
 
 Round 1 is the stack the service already captured (code frames, white, black): the scan checks
-every pixel's hard word against the codebook (CRC / syndrome check) and fixes the ones that pass.
-Each further round (at most ``edc.rounds``) asks the sensor for the scan's next masked frames
-(``masked_capture(stack, round, frames)``: n masked patterns + a masked white, projector frame ids
-carrying the round number) and re-decodes only the failing pixels.
+every pixel's hard word against the codebook (CRC / syndrome check) and verifies the ones that
+pass (and that a passing neighbour supports).  Each further round (at most ``edc.rounds``) asks the
+sensor for the scan's next masked frames (``masked_capture(stack, round, frames)``: n masked
+patterns + a masked white, projector frame ids carrying the round number): only the projector
+columns not claimed by a verified pixel are lit, only rows with an open pixel are lit at all, and
+only the open pixels are decoded (a sparse decode over the open-pixel list, `edge.edc._kernels`),
+never the full frame.
 
-Output: the scan's column map (pixels never resolved are invalid: their error was detected but
-not corrected) and the soft decoder's confidence where valid.  Without a masked-capture path (a
-backend that cannot re-project) the stage runs round 1 only, i.e. the EDC check invalidates
-detected errors.
+Output, consistent column and confidence:
+
+* the scan's column map: verified pixels, plus the soft decoder's column of an open pixel where a
+  chain of neighbours links it to verified pixels (`AdaptiveScan` ``keep_guess``, the soft
+  columns are the round-1 guesses), so EDC never reports fewer correct pixels than the soft
+  decode it checks;
+* confidence: the soft decoder's confidence where the published column IS the soft decoder's
+  column; 1.0 where the published column is a verified codeword that the soft decoder did not
+  give (a later round's decode, or a soft-invalid pixel) -- the hard decoder's confidence of an
+  exact codeword (d1 = 0); 0 where invalid.
+
+Without a masked-capture path (a backend that cannot re-project) the stage runs round 1 only.
+`EdcOutcome` also carries the per-round decode and capture times (the service's status).
 """
 
 from __future__ import annotations
 
+import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 
-def run_adaptive(pipeline: Any, stack: Any, codes: np.ndarray, white: np.ndarray, black: np.ndarray,
-                 column: np.ndarray, confidence: np.ndarray, masked_capture: Any):
-    """-> (column (H, W) int32, confidence (H, W) float32, rounds run, masked frames captured)."""
+@dataclass(frozen=True, eq=False)
+class EdcOutcome:
+    """Result of the EDC stage for one stack.
+
+    column: (H, W) int32 (-1 invalid); confidence: (H, W) float32 in [0, 1]; rounds: rounds run
+    (1 = the check of the stack itself); extra: masked frames captured (capture order);
+    round_ms: decode milliseconds of each round (round 1 included); capture_ms: milliseconds
+    spent waiting for each masked round's frames; open_pixels: pixels still open after each round.
+    """
+
+    column: np.ndarray
+    confidence: np.ndarray
+    rounds: int
+    extra: list
+    round_ms: tuple[float, ...]
+    capture_ms: tuple[float, ...]
+    open_pixels: tuple[int, ...]
+
+
+def _stacked(images: list) -> np.ndarray:
+    """(m, H, W) of m frame images without a copy when they are the consecutive planes of one array."""
+    base = images[0].base if images else None
+    if (isinstance(base, np.ndarray) and base.ndim == 3 and base.shape[0] == len(images)
+            and base.flags.c_contiguous
+            and all(im.base is base and im.ctypes.data == base[i].ctypes.data for i, im in enumerate(images))):
+        return base
+    return np.stack(images)
+
+
+def make_scan(pipeline: Any, height: int):
+    """The `AdaptiveScan` of a pipeline's profile (calibrated binarisation, the disparity band)."""
     from edge.edc import AdaptiveScan
 
     p = pipeline.profile
-    h = codes.shape[1]
-    scan = AdaptiveScan(pipeline.code, p.projector.width, h, stripe=pipeline.stripe,
+    return AdaptiveScan(pipeline.code, p.projector.width, height, stripe=pipeline.stripe,
                         max_rounds=1 + int(p.edc.rounds), binarisation="calibrated",
                         min_contrast=min(p.decoder.min_contrast, 0.999),
                         noise=(p.camera.sigma_r, p.camera.sigma_s),
                         full_scale=pipeline.full_scale,
                         disparity_band=(p.decoder.min_disparity, p.decoder.max_disparity))
+
+
+def run_adaptive(pipeline: Any, stack: Any, images: np.ndarray, column: np.ndarray, confidence: np.ndarray,
+                 masked_capture: Any) -> EdcOutcome:
+    """EDC rounds on one stack.
+
+    images: (n + 2, H, W) the stack's code frames, white, black (one array, no copy made);
+    column / confidence: (H, W) the soft decoder's column (-1 invalid) and confidence.
+    """
+    n = pipeline.code.n
+    h = images.shape[1]
+    scan = make_scan(pipeline, h)
     scan.start()
-    scan.update(np.concatenate([codes, white[None], black[None]]))
-    extra = []
+    first = scan.update(images[: n + 2], guess=column)
+    round_ms, capture_ms, open_px = [first.decode_s * 1e3], [], [first.failing]
+    extra: list = []
     edc_round = 1
     while masked_capture is not None:
         frames = scan.next_frames()
         if frames is None:
             break
+        t0 = time.perf_counter()
         captured = masked_capture(stack.stack, edc_round, frames)
+        capture_ms.append((time.perf_counter() - t0) * 1e3)
         extra.extend(captured)
-        scan.update(np.stack([f.image for f in captured]))
+        r = scan.update(_stacked([f.image for f in captured]))
+        round_ms.append(r.decode_s * 1e3)
+        open_px.append(r.failing)
         edc_round += 1
     result = scan.result()
     col = np.asarray(result.column, dtype=np.int32)
-    conf = np.where(col >= 0, confidence, np.float32(0)).astype(np.float32)
-    return col, conf, len(result.rounds), extra
+    same = (col >= 0) & (col == column)
+    conf = np.where(same, confidence, np.where(col >= 0, np.float32(1.0), np.float32(0.0))).astype(np.float32)
+    return EdcOutcome(column=col, confidence=conf, rounds=len(result.rounds), extra=extra,
+                      round_ms=tuple(round(t, 3) for t in round_ms),
+                      capture_ms=tuple(round(t, 3) for t in capture_ms), open_pixels=tuple(open_px))

@@ -42,7 +42,10 @@ class DepthResult:
     time of its last frame; received_ns: host time (time.time_ns) the last frame arrived;
     decode_s: seconds spent in `process`; edc_rounds: adaptive rounds run; extra_frames: frames
     captured by those rounds (in capture order, so they can be recorded and replayed); stats:
-    per-stack counters that the service sums into its status (e.g. ``events_out_of_order``).
+    per-stack counters that the service sums into its status (e.g. ``events_out_of_order``);
+    edc_round_ms: decode milliseconds of each EDC round (round 1 = the check of the stack);
+    edc_capture_ms: milliseconds waited for each masked round's frames; stack_frames: camera
+    frames of the stack itself.
     """
 
     stack: int
@@ -57,6 +60,14 @@ class DepthResult:
     extra_frames: tuple[Frame, ...] = field(default=())
     stats: dict[str, int] = field(default_factory=dict)
     geometry: Any = None  # the geometry the depth was computed with (set by the service; None = profile's)
+    edc_round_ms: tuple[float, ...] = ()
+    edc_capture_ms: tuple[float, ...] = ()
+    stack_frames: int = 0
+
+    @property
+    def frames_per_depth_map(self) -> int:
+        """Camera frames this depth map used: the stack's plus the EDC rounds' masked frames."""
+        return int(self.stack_frames) + len(self.extra_frames)
 
     @property
     def valid_fraction(self) -> float:
@@ -164,13 +175,17 @@ class DepthPipeline:
 
     def split(self, frames: list[Frame] | tuple[Frame, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Frames of one stack (schedule order) -> code frames (n, H, W), white (H, W), black (H, W)."""
+        images = self.stacked(frames)
+        return images[: self.n], images[self.n], images[self.n + 1]
+
+    def stacked(self, frames: list[Frame] | tuple[Frame, ...]) -> np.ndarray:
+        """Frames of one stack (schedule order) -> (n + 2, H, W): code frames, white, black (de-spread)."""
         ids = np.array([f.projector_frame for f in frames], dtype=np.int64)
         if ids.shape != self.schedule.shape or not np.array_equal(ids % (1 << 16), self.schedule % (1 << 16)):
             raise ValueError(
                 f"stack frames must follow the profile schedule of {self.schedule.size} projector frames, "
                 f"got ids {ids.tolist()[:8]}...")
-        images = self.despread(np.stack([f.image for f in frames]))
-        return images[: self.n], images[self.n], images[self.n + 1]
+        return self.despread(np.stack([f.image for f in frames]))
 
     def decode(self, codes: np.ndarray, white: np.ndarray, black: np.ndarray):
         """`edge.decode.decode` with the profile's method, noise model, thresholds and disparity band."""
@@ -191,8 +206,9 @@ class DepthPipeline:
 
         Decodes a small synthetic stack (8 rows x 64 columns, the camera's dtype, the profile's
         method and disparity band) so that the first real stack is not delayed by compilation
-        (about half a minute with an empty cache, well under a second from the cache).  Returns
-        the seconds spent.
+        (about half a minute with an empty cache, well under a second from the cache), and runs the
+        EDC check on it (the sparse kernels of `edge.edc`, so ``edc.rounds`` can be switched on
+        without a compile pause).  Returns the seconds spent.
         """
         t0 = time.perf_counter()
         dtype = np.uint8 if self.profile.camera.bits == 8 else np.uint16
@@ -206,7 +222,14 @@ class DepthPipeline:
         codes = np.broadcast_to(0.1 * full + 0.7 * full * bits[:, None, :] / levels, (self.code.n, h, w))
         white = np.full((h, w), 0.8 * full)
         black = np.full((h, w), 0.1 * full)
-        self.decode(codes.astype(dtype), white.astype(dtype), black.astype(dtype))
+        decoded = self.decode(codes.astype(dtype), white.astype(dtype), black.astype(dtype))
+        if self.code.q == 2 and self.code.n <= 22:  # the EDC stage's kernels (edc.rounds may be switched on live)
+            from .edc_stage import run_adaptive
+
+            images = np.concatenate([codes, white[None], black[None]]).astype(dtype)
+            images[0, 0, :8] = images[self.n, 0, :8] - images[0, 0, :8] + images[self.n + 1, 0, :8]  # failing words
+            run_adaptive(self, None, images, np.asarray(decoded.column, dtype=np.int32),
+                         np.asarray(decoded.confidence, dtype=np.float32), None)
         return time.perf_counter() - t0
 
     def validity(self, decoded, white: np.ndarray, black: np.ndarray) -> np.ndarray:
@@ -217,25 +240,28 @@ class DepthPipeline:
     def process(self, stack: Stack, masked_capture: MaskedCaptureFn | None = None) -> DepthResult:
         """Depth for one complete stack (see module docstring)."""
         t0 = time.perf_counter()
-        codes, white, black = self.split(stack.frames)
+        images = self.stacked(stack.frames)
+        codes, white, black = images[: self.n], images[self.n], images[self.n + 1]
         decoded = self.decode(codes, white, black)
         valid = self.validity(decoded, white, black)
         column = np.where(valid, np.asarray(decoded.column, dtype=np.int32), np.int32(-1))
         confidence = np.asarray(decoded.confidence, dtype=np.float32)
-        rounds, extra = 0, ()
+        rounds, extra, round_ms, capture_ms = 0, (), (), ()
         if self.profile.edc.rounds > 0:
-            column, confidence, rounds, extra = self.adaptive(stack, codes, white, black, column, confidence,
-                                                              masked_capture)
+            edc = self.adaptive(stack, images, column, confidence, masked_capture)
+            column, confidence, rounds, extra = edc.column, edc.confidence, edc.rounds, edc.extra
+            round_ms, capture_ms = edc.round_ms, edc.capture_ms
             valid = column >= 0
         depth = column_to_depth_mm(column, self.geometry, stripe=self.stripe)
         return DepthResult(
             stack=stack.stack, sequence=stack.first_sequence, timestamp_ns=stack.timestamp_ns,
             received_ns=stack.received_ns, depth_mm=depth, confidence=confidence_to_u8(confidence, depth > 0),
             column=column, decode_s=time.perf_counter() - t0, edc_rounds=rounds, extra_frames=tuple(extra),
+            edc_round_ms=tuple(round_ms), edc_capture_ms=tuple(capture_ms), stack_frames=len(stack.frames),
         )
 
-    def adaptive(self, stack, codes, white, black, column, confidence, masked_capture):
-        """EDC rounds: filled in by `edge.edc` integration (see `edge.runtime.edc_stage`)."""
+    def adaptive(self, stack, images, column, confidence, masked_capture):
+        """EDC rounds (`edge.runtime.edc_stage.run_adaptive`) -> `EdcOutcome`."""
         from .edc_stage import run_adaptive
 
-        return run_adaptive(self, stack, codes, white, black, column, confidence, masked_capture)
+        return run_adaptive(self, stack, images, column, confidence, masked_capture)

@@ -12,7 +12,10 @@ Pacing: frame i is released at ``start + i / rate_hz`` (``max_speed=True``: as s
 rendered).  A render thread works one stack ahead.  ``poses=K`` pre-renders K stacks of one
 motion period and cycles through them (fresh sequence numbers and timestamps), so that a benchmark
 measures the service and not the simulator.  Masked frames for the adaptive EDC loop are rendered
-on request for the scene of the stack that asked (`capture_masked`).
+on request for the scene of the stack that asked (`capture_masked`); without global illumination
+only the rows with a lit projector pixel are rendered, the dark rows read the stack's black frame.
+They are rendered outside the paced stream: a real projector-camera pair spends camera time on
+them (the service status reports ``frames_per_depth_map``).
 
 `PacedSensor` holds the machinery (render thread, pacing, poses, scene per stack) shared with the
 other simulated backends: `edge.sensors.dots` (dot projector), `edge.sensors.curtain` (light
@@ -234,6 +237,7 @@ class SimSensor(PacedSensor):
         # fixed total exposure (edge.sim convention): every frame of the stack gets total / n
         self.frame_exposure = self.camera.frame_exposure(self.code.n)
         self._masked_sequence = 0  # masked EDC frames are numbered -1, -2, ... (outside the stream)
+        self._blacks: dict[int, np.ndarray] = {}
         self._init_stream(profile, stacks=stacks, max_speed=max_speed, poses=poses, first_stack=first_stack)
 
     def _capture(self, scene, rows: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -244,6 +248,39 @@ class SimSensor(PacedSensor):
     def _render(self, stack: int, rng: np.random.Generator) -> np.ndarray:
         """(frames_per_stack, H, W) camera images of ``stack``."""
         return self._capture(self.scene(stack), self.rows, rng)
+
+    def render_stack(self, stack: int):
+        out = super().render_stack(stack)
+        with self._lock:  # the stack's black frame, for the dark rows of its masked EDC frames
+            self._blacks[stack] = out[-1]
+            while len(self._blacks) > 8:
+                self._blacks.pop(next(iter(self._blacks)))
+        return out
+
+    def _masked_images(self, scene, stack: int, frames_in: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """(m, H, W) images of masked projector frames.
+
+        Without global illumination a camera row sees only its own projector row, so rows whose
+        projector row is dark in every frame see ambient light only: they read the stack's own
+        black frame (same exposure; the same image up to noise) and only the lit rows are rendered.
+        """
+        from edge.sim.render import has_global_illumination
+
+        if frames_in.ndim != 3 or has_global_illumination(scene) or self.source or self.camera.defocus_sigma > 0:
+            return self._capture(scene, frames_in, rng)
+        lit_rows = np.nonzero(frames_in.any(axis=0).any(axis=1))[0]
+        with self._lock:
+            black = self._blacks.get(stack)
+        if black is None:
+            black = self._capture(scene, np.zeros((1, frames_in.shape[-1]), np.float32), rng)[0]
+        images = np.empty((frames_in.shape[0],) + black.shape, dtype=black.dtype)
+        images[:] = black
+        if lit_rows.size:
+            from edge.sim import capture
+
+            images[:, lit_rows] = capture(scene, frames_in, self.camera, rng=rng, exposure=self.frame_exposure,
+                                          rows=lit_rows)
+        return images
 
     def capture_masked(self, stack: int, edc_round: int, projector_frames: np.ndarray) -> list[Frame]:
         """Render masked projector frames for the scene of ``stack`` (adaptive EDC loop).
@@ -260,7 +297,8 @@ class SimSensor(PacedSensor):
         if m not in (n, n + 1, n + 2):
             raise ValueError(f"expected {n}..{n + 2} masked frames (patterns [+ white [+ black]]), got {m}")
         rng = np.random.default_rng([int(self.profile.sim.seed), int(stack), 1000 + int(edc_round)])
-        images = self._capture(self.scene(stack), frames_in, rng)
+        scene = self.scene(stack)
+        images = self._masked_images(scene, stack, frames_in, rng)
         now = time.time_ns()
         bases = list(range(n)) + [WHITE, BLACK][: m - n]
         out = []

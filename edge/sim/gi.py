@@ -14,6 +14,14 @@ which is exact for the concave scenes it is meant for (V-groove, bowl); for flat
 the cosine terms vanish.  The indirect irradiance is upsampled bilinearly to pixels and multiplied
 by ``strength`` (1 = physical).
 
+Glossy ("specular-ish") surfaces (``gloss`` = g > 0): patch j reflects the projector light into a
+normalised Phong lobe around the mirror direction r_j of the projector ray instead of uniformly,
+``F_ij(gloss) = F_ij * (g + 2) / 2 * max(0, r_j . w_ji)**g`` -- the light of a patch lands on a few
+receivers, so the indirect light a pixel gets depends on WHICH columns are lit (it no longer
+averages out over high-frequency patterns).  Several bounces (``bounces`` = b): the light received
+is reflected again with the patch's mean albedo, ``sum_{k=1..b} (strength * F * diag(albedo))**(k-1)
+strength * F B``.
+
 Sub-surface scattering (`scatter`): inside a region R with strength map s (0..1), light entering
 at one point leaves within a Gaussian footprint of ``sigma`` pixels:
 ``E' = (1 - s) * E + s * G_sigma * (E * [R])`` on R, E elsewhere.
@@ -38,12 +46,16 @@ class Interreflection:
         shape: camera image (H, W).
         form_factor: (P, P) float32, P = ceil(H/patch) * ceil(W/patch); row i = receiving patch.
         strength: multiplier of the indirect term (1 = physical).
+        bounces: light bounces summed (1 = one bounce).
+        patch_albedo: (P,) float32 mean albedo per patch (used from the second bounce on).
     """
 
     patch: int
     shape: tuple[int, int]
     form_factor: np.ndarray
     strength: float
+    bounces: int = 1
+    patch_albedo: np.ndarray | None = None
 
     @property
     def grid(self) -> tuple[int, int]:
@@ -69,6 +81,11 @@ class Interreflection:
         h, w = self.shape
         gh, gw = self.grid
         received = (self.patch_mean(radiance) @ self.form_factor.T) * np.float32(self.strength)
+        bounce = received
+        for _ in range(1, self.bounces):
+            albedo = self.patch_albedo if self.patch_albedo is not None else np.float32(1.0)
+            bounce = ((bounce * albedo) @ self.form_factor.T) * np.float32(self.strength)
+            received = received + bounce
         out = np.empty((m, h, w), dtype=np.float32)
         size = (gw * self.patch, gh * self.patch)
         for i in range(m):
@@ -99,10 +116,19 @@ def surface_normals(points: np.ndarray) -> np.ndarray:
 
 
 def build_interreflection(depth_m: np.ndarray, geometry: Geometry, *, strength: float = 1.0,
-                          patch: int = 16) -> Interreflection:
-    """One-bounce transport of the camera-visible surface ``depth_m`` (H, W) metres."""
+                          patch: int = 16, bounces: int = 1, gloss: float = 0.0,
+                          albedo: np.ndarray | None = None) -> Interreflection:
+    """Inter-reflection transport of the camera-visible surface ``depth_m`` (H, W) metres.
+
+    bounces >= 1; gloss >= 0 (0 = diffuse, see the module docstring); albedo: (H, W) for the
+    per-patch albedo of the second and later bounces (default 1).
+    """
     if strength < 0:
         raise ValueError(f"interreflection strength must be >= 0, got {strength}")
+    if int(bounces) != bounces or bounces < 1:
+        raise ValueError(f"interreflection bounces must be an integer >= 1, got {bounces}")
+    if not gloss >= 0:
+        raise ValueError(f"interreflection gloss must be >= 0, got {gloss}")
     h, w = depth_m.shape
     pts = surface_points(depth_m, geometry)
     nrm = surface_normals(pts)
@@ -134,11 +160,25 @@ def build_interreflection(depth_m: np.ndarray, geometry: Geometry, *, strength: 
     cos_i = np.maximum(0.0, (npt - own[:, None]) / r)
     cos_j = np.maximum(0.0, (npt.T - own[None, :]) / r)
     f = area[None, :] * cos_i * cos_j / (np.pi * np.maximum(r2, area[None, :]))
+    if gloss > 0:
+        # mirror direction of the projector ray at each source patch j (projector centre (B, 0, 0))
+        inc = p - np.array([geometry.baseline_m, 0.0, 0.0])
+        inc /= np.maximum(np.linalg.norm(inc, axis=-1, keepdims=True), 1e-12)
+        mirror = inc - 2.0 * (inc * n).sum(axis=1, keepdims=True) * n
+        # r_j . w_ji with w_ji = (p_i - p_j) / r_ij
+        rp = p @ mirror.T  # (i, j): p_i . r_j
+        own_r = (mirror * p).sum(axis=1)
+        cos_lobe = np.maximum(0.0, (rp - own_r[None, :]) / r)
+        f = f * ((gloss + 2.0) / 2.0) * cos_lobe ** gloss
     np.fill_diagonal(f, 0.0)
     empty = count == 0
     f[empty, :] = 0.0
     f[:, empty] = 0.0
-    return Interreflection(patch=patch, shape=(h, w), form_factor=f.astype(np.float32), strength=float(strength))
+    patch_albedo = None
+    if albedo is not None and bounces > 1:
+        patch_albedo = (block_sum(np.asarray(albedo, dtype=np.float64)) / safe).astype(np.float32)
+    return Interreflection(patch=patch, shape=(h, w), form_factor=f.astype(np.float32), strength=float(strength),
+                           bounces=int(bounces), patch_albedo=patch_albedo)
 
 
 def scatter(irradiance: np.ndarray, strength_map: np.ndarray, sigma_px: float) -> np.ndarray:

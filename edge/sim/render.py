@@ -117,22 +117,81 @@ def projector_irradiance(scene: Scene, projector_frames: np.ndarray, camera: Cam
     return e
 
 
+#: A rows= render of at most this many samples (frames x rows x columns) runs in numpy: a parallel
+#: kernel's start-up dominates such small jobs (the few rows of a masked EDC round).
+SMALL_RENDER = 1 << 21
+
+
+def _warp_nearest_small(patterns: np.ndarray, column_int: np.ndarray, row_of: np.ndarray) -> np.ndarray:
+    """`warp_nearest` (same result); numpy for small jobs."""
+    m, _, wp = patterns.shape
+    if m * column_int.size > SMALL_RENDER:
+        return warp_nearest(patterns, column_int, row_of)
+    ok = (column_int >= 0) & (column_int < wp)
+    e = patterns[:, row_of[:, None], np.clip(column_int, 0, wp - 1)]
+    return np.where(ok[None], e, np.float32(0.0)).astype(np.float32)
+
+
+def _expose_numpy(e: np.ndarray, albedo: np.ndarray, scale_projector: float, ambient_level: float,
+                  normals: np.ndarray, sigma_r2: float, sigma_s2: float, levels: float, dtype) -> np.ndarray:
+    """`expose` in numpy (float64 arithmetic like the kernel), for small renders."""
+    clean = np.maximum(albedo.astype(np.float64)[None] * (scale_projector * e.astype(np.float64) + ambient_level), 0.0)
+    noisy = clean + np.sqrt(sigma_r2 + sigma_s2 * clean) * normals
+    return np.clip(np.floor(noisy * levels + 0.5), 0.0, levels).astype(dtype)
+
+
+def has_global_illumination(scene: Scene) -> bool:
+    """True when a pixel's light depends on other pixels (scattering or inter-reflection)."""
+    return bool(scene.has_scattering or (scene.interreflection is not None and scene.interreflection.strength > 0))
+
+
 def capture(scene: Scene, projector_frames: np.ndarray, camera: CameraModel, *,
-            rng: np.random.Generator | int | None, exposure: float | None = None) -> np.ndarray:
+            rng: np.random.Generator | int | None, exposure: float | None = None,
+            rows: np.ndarray | None = None) -> np.ndarray:
     """Camera frames (m, H, W) of ``scene`` lit by ``projector_frames`` (eq. 1 plus noise and ADC).
 
     exposure: per-frame exposure (relative units), default ``camera.exposure``; light and ambient
-    scale linearly with it.  rng: numpy Generator (or int seed) for the noise.
+    scale linearly with it.  rng: numpy Generator (or int seed) for the noise.  rows: optional
+    camera rows to render (int array); the result is then (m, len(rows), W).  Only exact without
+    global illumination (a pixel's light then depends on its own projector row alone): a scene
+    with scattering or inter-reflection raises ValueError.
     Returns uint8 frames for 8-bit cameras, uint16 (0..2**bits-1) otherwise.
     """
     t = camera.exposure if exposure is None else exposure
     if not (np.isfinite(t) and t > 0):
         raise ValueError(f"capture: exposure must be > 0, got {t}")
     gen = _as_rng(rng)
-    e = projector_irradiance(scene, projector_frames, camera)
+    albedo = scene.albedo
+    if rows is None:
+        e = projector_irradiance(scene, projector_frames, camera)
+    else:
+        if has_global_illumination(scene):
+            raise ValueError("capture: rows= needs a scene without global illumination (scattering, inter-reflection)")
+        r = np.asarray(rows, dtype=np.int32)
+        if r.ndim != 1 or (r.size and (r.min() < 0 or r.max() >= scene.height)):
+            raise ValueError(f"capture: rows must be camera rows 0..{scene.height - 1}, got {r!r}")
+        p = np.asarray(projector_frames)
+        wp = int(scene.geometry.projector_width)
+        if camera.defocus_sigma <= 0 and p.ndim == 3 and p.shape[1] == scene.height:
+            # no blur across rows: normalise only the projector rows the camera rows see
+            patterns = normalise_projector_frames(p[:, r], r.size, wp)
+            row_of = np.arange(r.size, dtype=np.int32)
+        else:
+            patterns = defocus(normalise_projector_frames(p, scene.height, wp), camera.defocus_sigma)
+            row_of = r if patterns.shape[1] == scene.height else np.zeros(r.size, dtype=np.int32)
+        if camera.sampling == "linear":
+            e = warp_linear(patterns, np.ascontiguousarray(scene.column[r]), row_of)
+        else:
+            e = _warp_nearest_small(patterns, np.ascontiguousarray(scene.column_int[r]), row_of)
+        albedo = np.ascontiguousarray(albedo[r])
+        if e.size <= SMALL_RENDER:
+            normals = gen.standard_normal(e.shape, dtype=np.float32)
+            return _expose_numpy(e, albedo, float(t * camera.projector), float(t * camera.ambient), normals,
+                                 float(camera.sigma_r**2), float(camera.sigma_s**2), float(camera.levels),
+                                 np.uint8 if camera.bits == 8 else np.uint16)
     normals = gen.standard_normal(e.shape, dtype=np.float32)
     out = np.empty(e.shape, dtype=np.uint8 if camera.bits == 8 else np.uint16)
-    expose(e, scene.albedo, float(t * camera.projector), float(t * camera.ambient), normals,
+    expose(e, albedo, float(t * camera.projector), float(t * camera.ambient), normals,
            float(camera.sigma_r**2), float(camera.sigma_s**2), float(camera.levels), out)
     return out
 

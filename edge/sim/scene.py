@@ -109,13 +109,15 @@ class Scene:
 def build_scene(name: str, depth_m: np.ndarray, albedo: np.ndarray, object_id: np.ndarray,
                 geometry: Geometry, *, scattering: np.ndarray | None = None, scattering_sigma: float = 0.0,
                 interreflection: float = 0.0, t: float = 0.0, seed: int = 0,
-                params: dict[str, Any] | None = None, gi_patch: int = 16) -> Scene:
+                params: dict[str, Any] | None = None, gi_patch: int = 16, bounces: int = 1,
+                gloss: float = 0.0) -> Scene:
     """Ground truth for a camera-visible surface.
 
     depth_m: (H, W) metres (NaN = no surface); albedo: (H, W) in [0, 1]; object_id: (H, W) int
     labels (neighbouring pixels with the same label are one continuous surface for the projector
     z-buffer); scattering: (H, W) strength map in [0, 1] or None; interreflection: one-bounce
-    strength (0 = off, 1 = physical).
+    strength (0 = off, 1 = physical); gi_patch: inter-reflection patch side (pixels); bounces,
+    gloss: see `edge.sim.gi.build_interreflection`.
     """
     h, w = depth_m.shape
     depth = depth_m.astype(np.float32)
@@ -130,7 +132,8 @@ def build_scene(name: str, depth_m: np.ndarray, albedo: np.ndarray, object_id: n
     transport = None
     if interreflection > 0:
         transport = build_interreflection(np.where(np.isfinite(depth), depth, np.nan), geometry,
-                                          strength=interreflection, patch=gi_patch)
+                                          strength=interreflection, patch=gi_patch, bounces=bounces, gloss=gloss,
+                                          albedo=albedo)
     scene = Scene(
         name=name, albedo=_readonly(np.clip(albedo, 0, 1).astype(np.float32)), column=_readonly(column),
         column_int=_readonly(column_int), disparity=_readonly(disparity), depth_m=_readonly(depth),

@@ -13,6 +13,8 @@ geometry, and accepts these common parameters:
   ``scattering_sigma`` pixels (default 3).  Default 0 except for the ``scattering`` scene (0.8).
 - ``texture`` (0..1, default 1): contrast of the albedo texture (0 = uniform albedo ``albedo``).
 - ``albedo`` (default 0.7): mean albedo of analytic scenes.
+- ``bounces`` (default 1), ``gloss`` (default 0 = diffuse; > 0: Phong exponent of a specular-ish
+  lobe), ``gi_patch`` (default 16 pixels): inter-reflection model, see `edge.sim.gi`.
 
 Scene names: flying, plane, tilted-plane, steps, sphere, v-groove, bowl, scattering.
 """
@@ -29,7 +31,7 @@ from .geometry import Geometry
 from .scene import Scene, build_scene
 
 _COMMON = {"t": 0.0, "interreflection": None, "scattering": None, "scattering_sigma": 3.0, "texture": 1.0,
-           "albedo": 0.7, "motion": 0.05}
+           "albedo": 0.7, "motion": 0.05, "bounces": 1, "gloss": 0.0, "gi_patch": 16}
 
 
 def smooth_noise(rng: np.random.Generator, height: int, width: int, *, scales: tuple[int, ...] = (4, 16, 64)) -> np.ndarray:
@@ -297,6 +299,12 @@ def make_scene(name: str, width: int = 640, height: int = 480, *, seed: int = 0,
         raise ValueError(f"scene {name!r}: scattering_sigma must be > 0 pixels, got {p['scattering_sigma']}")
     if not 0.0 <= float(p["texture"]) <= 1.0:
         raise ValueError(f"scene {name!r}: texture contrast must be in [0, 1], got {p['texture']}")
+    if int(p["bounces"]) != p["bounces"] or int(p["bounces"]) < 1:
+        raise ValueError(f"scene {name!r}: bounces must be an integer >= 1, got {p['bounces']}")
+    if not float(p["gloss"]) >= 0:
+        raise ValueError(f"scene {name!r}: gloss must be >= 0, got {p['gloss']}")
+    if int(p["gi_patch"]) != p["gi_patch"] or int(p["gi_patch"]) < 1:
+        raise ValueError(f"scene {name!r}: gi_patch must be an integer >= 1 pixel, got {p['gi_patch']}")
     geometry = geometry or Geometry.default(int(width), int(height))
     rng = np.random.default_rng(int(seed))
     depth, albedo, oid, region = build(int(width), int(height), geometry, rng, p)
@@ -305,4 +313,5 @@ def make_scene(name: str, width: int = 640, height: int = 480, *, seed: int = 0,
         name, depth, albedo, oid, geometry, scattering=scattering,
         scattering_sigma=float(p["scattering_sigma"]) if scat_strength > 0 else 0.0,
         interreflection=float(inter), t=float(p["t"]), seed=int(seed), params=dict(params),
+        gi_patch=int(p["gi_patch"]), bounces=int(p["bounces"]), gloss=float(p["gloss"]),
     )
