@@ -132,6 +132,9 @@ class Service:
                 try:
                     frame = self.sensor.read(0.1)
                 except EndOfStream:
+                    problem = getattr(self.sensor, "problem", None)  # e.g. a corrupt replayed recording
+                    if problem:
+                        self.counters.last_error = f"sensor: {problem}"
                     break
                 if frame is None:
                     continue
