@@ -28,6 +28,9 @@ topic                       schema (encoding)           content
                                                         (`edge.runtime.event_record`)
 ==========================  ==========================  =======================================
 
+``/<device>/config_change`` (edge.ConfigChange, json) holds every config update the running service
+accepted: time_ns, keys, update, profile (`edge.runtime.recording`).
+
 Further topics are added through `edge.io.mcap_writer.Recorder.register_channel` (same
 ``/<device>/<leaf>`` naming); `topics` lists the standard ones that every recording has.
 

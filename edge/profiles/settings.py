@@ -63,6 +63,9 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     connect = []
     multicast_scouting = false
     status_period_s = 1.0                 # >= 0.05 s
+    config_writes = false                 # accept config updates on <prefix>/<device>/config (reads always)
+    access_control = ""                   # zenoh ACL: the JSON object of zenoh's "access_control" config,
+                                          # required when config_writes is on beyond loopback (README)
 
     [recording]
     chunk_size = 4194304                  # bytes of uncompressed messages per MCAP chunk
@@ -238,6 +241,8 @@ class ZenohSettings:
     connect: tuple[str, ...] = _f((), pattern=_ENDPOINT)
     multicast_scouting: bool = _f(False)
     status_period_s: float = _f(1.0, lo=0.05, hi=3600.0)
+    config_writes: bool = _f(False)
+    access_control: str = _f("")
 
     def key(self, leaf: str) -> str:
         """``<prefix>/<device>/<leaf>``, e.g. ``sl/sim-dlp/depth``."""
@@ -395,6 +400,7 @@ def _check_profile(p: Profile, source: str) -> None:
                            f"expected <= the frame period 1e6 / rate_hz = {period_us:g}, got {p.camera.exposure_us:g}")
     if p.zenoh.mode == "client" and not p.zenoh.connect:
         raise ProfileError(source, "zenoh.connect", "expected at least one endpoint in client mode, got []")
+    _check_access(p.zenoh, source)
 
 
 def _check_pipeline(p: Profile, source: str) -> None:
@@ -454,6 +460,45 @@ def _check_pipeline(p: Profile, source: str) -> None:
     names = scene_names()
     if p.sim.scene not in names:
         raise ProfileError(source, "sim.scene", f"expected one of {', '.join(names)}, got {p.sim.scene!r}")
+
+
+_LOOPBACK = re.compile(r"(tcp|udp|tls|quic|ws)/(127\.\d+\.\d+\.\d+|localhost|\[::1\]):\d+([#?].*)?|unixsock-stream/.*")
+
+
+def is_loopback(endpoint: str) -> bool:
+    """True for a zenoh endpoint only this host can reach (127.x, localhost, [::1], unix socket)."""
+    return bool(_LOOPBACK.fullmatch(endpoint))
+
+
+def _check_access(z: "ZenohSettings", source: str) -> None:
+    """Config writes beyond loopback need zenoh's own access control (ACL rules)."""
+    import json
+
+    if z.access_control:
+        try:
+            acl = json.loads(z.access_control)
+        except ValueError as exc:
+            raise ProfileError(source, "zenoh.access_control",
+                               f"expected the JSON object of zenoh's access_control config, got invalid JSON ({exc})") from None
+        if not isinstance(acl, dict):
+            raise ProfileError(source, "zenoh.access_control",
+                               f"expected the JSON object of zenoh's access_control config, got {_type_name(acl)}")
+        import zenoh  # zenoh's own parser names a wrong field or type
+
+        try:
+            zenoh.Config().insert_json5("access_control", z.access_control)
+        except Exception as exc:
+            text = " ".join(str(exc).split())[:300]
+            raise ProfileError(source, "zenoh.access_control", f"zenoh rejects the ACL config: {text}") from None
+        return
+    if not z.config_writes:
+        return
+    open_to = [e for e in (*z.listen, *z.connect) if not is_loopback(e)]
+    if open_to or z.multicast_scouting:
+        what = f"endpoint {open_to[0]}" if open_to else "multicast scouting"
+        raise ProfileError(source, "zenoh.config_writes",
+                           f"expected zenoh.access_control rules (zenoh ACL) when config writes are on and the "
+                           f"session is reachable beyond loopback ({what}); see README 'Who may change the sensor'")
 
 
 def build_profile(data: Mapping[str, Any], source: str = "<dict>") -> Profile:

@@ -20,7 +20,8 @@ class ZenohSink:
         from edge.io.zenoh import DepthPublisher
 
         on_update = service.update_config if service is not None else _reject_updates
-        self.publisher = DepthPublisher(profile, on_update=on_update)
+        on_reject = getattr(service, "count_config_rejection", None)  # rejections of the zenoh layer
+        self.publisher = DepthPublisher(profile, on_update=on_update, on_reject=on_reject)
         self.sequence = 0
 
     def on_result(self, result: DepthResult) -> None:
