@@ -380,21 +380,17 @@ def _outcome_text(r: KindResult) -> str:
     return "; ".join(parts)
 
 
+def _rows(results: list[KindResult]) -> list[dict[str, Any]]:
+    return [{"fault": f"corrupt recording: {r.kind}", "trials": r.trials, "outcomes": _outcome_text(r),
+             "target": "0 tracebacks, 0 hangs, 0 silent wrong results; --recover salvages every intact chunk",
+             "met": r.bad == 0 and r.held_short == 0} for r in results]
+
+
 def rows(full: bool) -> list[dict[str, Any]]:
-    """One row per mutation kind (fault, trials, outcomes, target, met) for tools/fault_report.py."""
+    """One row per mutation kind (fault, trials, outcomes, target, met) for tools/fault_report.py:
+    12 mutants per kind (120) with --sensor replay on every second one when ``full``, else 4 per kind."""
     os.environ.setdefault("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache"))
-    results = run_suite(per_kind=12 if full else 4, sensor_every=2 if full else 5)
-    out = []
-    for r in results:
-        out.append({
-            "fault": f"corrupt recording: {r.kind}",
-            "trials": r.trials,
-            "outcomes": _outcome_text(r),
-            "target": "0 tracebacks, 0 hangs, 0 silent wrong results; --recover salvages every intact chunk",
-            "met": r.bad == 0 and r.held_short == 0,
-            "examples": r.examples,
-        })
-    return out
+    return _rows(run_suite(per_kind=12 if full else 4, sensor_every=2 if full else 5))
 
 
 def main() -> int:
@@ -402,12 +398,14 @@ def main() -> int:
     ap.add_argument("--full", action="store_true", help="120 mutants x (replay, --recover) + 60 x --sensor replay")
     args = ap.parse_args()
     t0 = time.monotonic()
-    table = rows(args.full)
-    print(f"| fault | trials | outcomes | target | met |\n|---|---|---|---|---|")
+    os.environ.setdefault("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache"))
+    results = run_suite(per_kind=12 if args.full else 4, sensor_every=2 if args.full else 5)
+    table = _rows(results)
+    print("| fault | trials | outcomes | target | met |\n|---|---|---|---|---|")
     for r in table:
         print(f"| {r['fault']} | {r['trials']} | {r['outcomes']} | {r['target']} | {'yes' if r['met'] else 'NO'} |")
-    for r in table:
-        for e in r["examples"]:
+    for r in results:
+        for e in r.examples:
             print(f"  {e}")
     print(f"{sum(r['trials'] for r in table)} mutants in {time.monotonic() - t0:.0f} s")
     return 0 if all(r["met"] for r in table) else 1
