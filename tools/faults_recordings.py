@@ -99,9 +99,8 @@ class Layout:
 
 def layout(path: Path) -> Layout:
     from mcap.reader import make_reader
-    from mcap.stream_reader import breakup_chunk
-    from mcap.records import Chunk, Message, Channel
-    from mcap.stream_reader import StreamReader
+    from mcap.records import Chunk, Message
+    from mcap.stream_reader import StreamReader, breakup_chunk
 
     data = path.read_bytes()
     with open(path, "rb") as f:
@@ -115,10 +114,8 @@ def layout(path: Path) -> Layout:
                 per_chunk.append(sum(1 for m in breakup_chunk(r) if isinstance(m, Message) and m.channel_id in raw_ids))
     footer_pos = len(data) - len(MAGIC) - 29
     summary_start = struct.unpack_from("<Q", data, footer_pos + 9)[0]
-    key = b'"json"'  # not used directly: find the profile text by its start
-    start = data.find(b'{"camera"')
+    start = data.find(b'{"camera"')          # the canonical profile JSON (sorted keys) in edge.profile
     end = data.find(b"}}", start) + 2
-    del key, Channel
     return Layout(data, chunks, per_chunk, summary_start, footer_pos, (start, end), sum(per_chunk))
 
 

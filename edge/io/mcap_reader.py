@@ -12,11 +12,15 @@ Usage::
     for st in rec.stacks(): ...     # RecordedStack: stack, frames, images (n, H, W), info, output
     for m in rec.messages(): ...    # RecordedMessage: topic, log_time, sequence, schema, value
 
-Reading is one sequential pass over the records (file order), with chunk CRCs and the data-section
-CRC validated. A truncated or corrupt file yields everything readable, then raises
-`TruncatedRecordingError` naming the byte offset reached and what was read (``strict=False``: stop
-quietly and leave the message in ``reader.problem``). A non-MCAP file raises `NotMcapError` on open.
-All errors are `RecordingError`, a ValueError, with one line of text.
+Reading is one sequential pass over the records (file order, `edge.io.mcap_scan.RecordScanner`)
+with every CRC validated (chunks, data section, summary), both magics and the end of the file
+checked. A corrupt chunk is skipped (``reader.chunks_skipped``) and reading goes on with the next
+valid one; a truncated or corrupt file yields everything readable, then raises
+`TruncatedRecordingError` naming the byte offset of the first problem and what was read
+(``strict=False``: end quietly and leave the message in ``reader.problem``, every problem in
+``reader.problems``). The recorded profile's sha256 is checked on open. A non-MCAP file raises
+`NotMcapError`, a directory or unreadable path `RecordingError`. All errors are
+`RecordingError`, a ValueError, with one line of text.
 """
 
 from __future__ import annotations
