@@ -351,6 +351,7 @@ def run_suite(*, per_kind: int, sensor_every: int, seed: int = 12,
     with tempfile.TemporaryDirectory(prefix="edge-faults-") as tmp:
         work = Path(tmp)
         lays = bases(work)
+        cli(["replay", str(work / "base-zstd.mcap")])  # compile the decoder first: not a hang
         idx = 0
         for kind in KINDS:
             res = KindResult(kind)

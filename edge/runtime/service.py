@@ -129,7 +129,10 @@ class Service:
             self.last_config_change = change
         on_change = getattr(self.recorder, "on_config_change", None)
         if on_change is not None:  # the recording says when the decoding settings changed, and to what
-            on_change({**change, "update": dict(update), "profile": profile_to_dict(new)})
+            try:
+                on_change({**change, "update": dict(update), "profile": profile_to_dict(new)})
+            except Exception as exc:  # the change stands; the recording problem goes to status
+                self.counters.last_error = f"recorder: {type(exc).__name__}: {exc}"
         return new
 
     def count_config_rejection(self, reason: str = "") -> None:

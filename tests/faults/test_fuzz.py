@@ -46,7 +46,7 @@ def test_decode_pins():
 
     from edge.codes import get_code
 
-    code = get_code("nary8-3")
+    code = get_code("gray-10")
     tally: Counter = Counter()
     one = np.full((code.n, 1, 1), 100, np.uint8)
     ff.check_decode(one, np.full((1, 1), 255, np.uint8), np.zeros((1, 1), np.uint8), code, {}, tally)
