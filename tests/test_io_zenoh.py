@@ -32,7 +32,7 @@ def endpoint():
 
 @pytest.fixture()
 def publisher(endpoint):
-    profile = apply_update(load_profile("sim-dlp"), {"zenoh": {"listen": [endpoint]}})
+    profile = apply_update(load_profile("sim-dlp"), {"zenoh": {"listen": [endpoint], "config_writes": True}})
     pub = DepthPublisher(profile)
     yield pub
     pub.close()
@@ -127,7 +127,7 @@ def test_on_update_callback_decides(endpoint):
             raise ValueError("edc.rounds above 4 would drop stacks at 120 fps")
         return apply_update(pub.profile, partial)
 
-    profile = apply_update(load_profile("sim-dlp"), {"zenoh": {"listen": [endpoint]}})
+    profile = apply_update(load_profile("sim-dlp"), {"zenoh": {"listen": [endpoint], "config_writes": True}})
     pub = DepthPublisher(profile, on_update=on_update)
     try:
         with DepthSubscriber("sim-dlp", connect=[endpoint]) as sub:

@@ -67,7 +67,8 @@ def test_stack_numbering_from_sequence():
 
 def _oak_profile():
     p = load_profile("sim-dlp")
-    return apply_update(p, {"camera": {"width": W, "height": H}, "code": {"name": "gray-3"}, "projector": {"width": 8}})
+    return apply_update(p, {"camera": {"width": W, "height": H}, "code": {"name": "gray-3"}, "projector": {"width": 8},
+                            "decoder": {"min_disparity": -4, "max_disparity": 0}})  # a band that meets 8 columns
 
 
 def test_oak_sensor_constructs_without_device():

@@ -61,7 +61,8 @@ def _service_with_zenoh(endpoint):
     from edge.runtime.service import Service
     from edge.sensors.sim import SimSensor
 
-    profile = apply_update(load_test_profile(), {"zenoh": {"listen": [endpoint], "status_period_s": 0.2}})
+    profile = apply_update(load_test_profile(), {"zenoh": {"listen": [endpoint], "status_period_s": 0.2,
+                                                          "config_writes": True}})
     service = Service(profile, SimSensor(profile, poses=4), pipeline_factory=NumpyPipeline)
     service.sinks.append(ZenohSink(profile, service))
     return service

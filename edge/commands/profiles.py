@@ -45,6 +45,9 @@ def _check(args: argparse.Namespace) -> int:
         except (ProfileError, FileNotFoundError) as exc:
             print(f"error: {exc}")
             failed += 1
+        except (ValueError, OSError) as exc:  # anything else still names the file and goes on
+            print(f"error: {item}: {type(exc).__name__}: {exc}")
+            failed += 1
     return 1 if failed else 0
 
 

@@ -42,6 +42,8 @@ def replay(args: argparse.Namespace) -> int:
     path = args.file
     if not os.path.exists(path):
         raise FileNotFoundError(f"recording {path!r} does not exist")
+    if os.path.isdir(path):
+        raise ValueError(f"recording {path!r} is a directory, expected an MCAP file")
     if args.recover:
         out = args.out or (path[:-5] if path.endswith(".mcap") else path) + ".recovered.mcap"
         report = recover(path, out)
@@ -94,6 +96,8 @@ def replay(args: argparse.Namespace) -> int:
     if report.mismatches:
         return 1
     if report.problem or report.stacks_compared == 0:
+        problem = report.problem or f"{path}: no recorded depth output to compare against"
+        print(f"edge replay: error: {problem}", file=sys.stderr)
         return 2
     print("edge replay: depth reproduced bit for bit")
     return 0

@@ -183,6 +183,10 @@ def run(args: argparse.Namespace) -> int:
                   f"{z['published_while_disconnected']} depth maps put while disconnected")
     if received:
         print(f"stopped by signal {signal.Signals(received[0]).name}", file=sys.stderr)
+    problem = getattr(service.sensor, "problem", None)
+    if problem:  # a corrupt or truncated recording behind --sensor replay: not a clean run
+        print(f"edge run: error: {problem}", file=sys.stderr)
+        return 2
     if status.get("errors") and status["stacks_decoded"] == 0:
         return 1
     return 0

@@ -94,6 +94,10 @@ class Decoded:
 def _band_args(width: int, min_disparity: float | None, max_disparity: float | None) -> tuple[bool, int, int]:
     if min_disparity is None and max_disparity is None:
         return False, 0, 0
+    for name, v in (("min_disparity", min_disparity), ("max_disparity", max_disparity)):
+        if v is not None and not (isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+                                  and np.isfinite(v) and abs(v) <= 2**30):
+            raise ValueError(f"{name}: expected a finite number of pixels (|d| <= 2**30) or None, got {v!r}")
     lo = -(10**9) if min_disparity is None else int(np.floor(min_disparity))
     hi = 10**9 if max_disparity is None else int(np.ceil(max_disparity))
     if lo > hi:
@@ -277,6 +281,8 @@ def decode(
         raise ValueError(f"metric: expected one of {', '.join(METRICS)}, got {metric!r}")
     if not (sigma_r > 0 and sigma_s >= 0):
         raise ValueError(f"sigma_r, sigma_s: expected sigma_r > 0 and sigma_s >= 0, got {sigma_r}, {sigma_s}")
+    if not (np.isfinite(min_contrast) and np.isfinite(min_confidence)):
+        raise ValueError(f"min_contrast, min_confidence: expected finite numbers, got {min_contrast}, {min_confidence}")
     if not (0 <= t_low <= t_high <= 1):
         raise ValueError(f"t_low, t_high: expected 0 <= t_low <= t_high <= 1, got {t_low}, {t_high}")
     if stripe < 1:

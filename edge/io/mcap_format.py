@@ -39,6 +39,9 @@ Frame ids (`edge.io.ros.frame_ids`, REP 103 / 105, ``<name>`` = device with ``-`
 images, calibration and points are in ``<name>_optical_frame``, so Foxglove projects the depth
 image and draws the cloud in one frame tree.
 
+``/<device>/config_change`` (edge.ConfigChange, json) holds every config update the running service
+accepted: time_ns, keys, update, profile (`edge.runtime.recording`).
+
 Further topics are added through `edge.io.mcap_writer.Recorder.register_channel` (same
 ``/<device>/<leaf>`` naming); `topics` lists the standard ones that every recording has.
 

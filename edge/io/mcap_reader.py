@@ -12,33 +12,37 @@ Usage::
     for st in rec.stacks(): ...     # RecordedStack: stack, frames, images (n, H, W), info, output
     for m in rec.messages(): ...    # RecordedMessage: topic, log_time, sequence, schema, value
 
-Reading is one sequential pass over the records (file order), with chunk CRCs and the data-section
-CRC validated. A truncated or corrupt file yields everything readable, then raises
-`TruncatedRecordingError` naming the byte offset reached and what was read (``strict=False``: stop
-quietly and leave the message in ``reader.problem``). A non-MCAP file raises `NotMcapError` on open.
-All errors are `RecordingError`, a ValueError, with one line of text.
+Reading is one sequential pass over the records (file order, `edge.io.mcap_scan.RecordScanner`)
+with every CRC validated (chunks, data section, summary), both magics and the end of the file
+checked. A corrupt chunk is skipped (``reader.chunks_skipped``) and reading goes on with the next
+valid one; a truncated or corrupt file yields everything readable, then raises
+`TruncatedRecordingError` naming the byte offset of the first problem and what was read
+(``strict=False``: end quietly and leave the message in ``reader.problem``, every problem in
+``reader.problems``). The recorded profile's sha256 is checked on open. A non-MCAP file raises
+`NotMcapError`, a directory or unreadable path `RecordingError`. All errors are
+`RecordingError`, a ValueError, with one line of text.
 """
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 import os
-import struct
 from dataclasses import dataclass, field
 from typing import Any, Iterator
 
 import numpy as np
 from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
 from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
-from mcap.exceptions import McapError
+from google.protobuf.message import DecodeError
 from mcap.reader import make_reader
-from mcap.records import Attachment, Channel, Chunk, Footer, Message, Metadata, Schema
-from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
+from mcap.records import Attachment, Channel, Message, Metadata, Schema
 
 from edge.profiles import Profile, ProfileError, changed_keys, profile_from_dict
 
 from .mcap_format import PROFILE_METADATA, SENSOR_METADATA, raw_to_image
+from .mcap_scan import CORRUPT_ERRORS, MCAP_MAGIC, RecordScanner, describe_error, summary_definitions
 
 __all__ = [
     "RecordingError",
@@ -54,7 +58,6 @@ __all__ = [
     "MCAP_MAGIC",
 ]
 
-MCAP_MAGIC = b"\x89MCAP0\r\n"
 # Profile sections that do not change what the decoder computes (ignored by the profile check).
 _NOT_DECODING = ("description", "sensor.", "zenoh.", "recording.", "sim.")
 
@@ -127,27 +130,19 @@ def scan_records(f: io.BufferedReader, total: int) -> Iterator[tuple[Any, int]]:
     """Yield ``(record, end_offset)`` for every record in file order, chunks broken up.
 
     ``end_offset`` is the byte offset just past the top-level record the item came from (for a
-    chunk's inner records: the end of the chunk). Chunk CRCs and the data-section CRC are checked;
-    mcap exceptions (EndOfFile, CRCValidationError, ...) propagate to the caller.
+    chunk's inner records: the end of the chunk). Every CRC is checked (`RecordScanner`); the first
+    problem raises `TruncatedRecordingError` after everything readable was yielded.
     """
-    reader = StreamReader(f, emit_chunks=True, validate_crcs=True, record_size_limit=max(total, 1))
-    for record in reader.records:
-        end = f.tell()
-        if isinstance(record, Chunk):
-            for inner in breakup_chunk(record, validate_crc=True):
-                yield inner, end
-        else:
-            yield record, end
+    scan = RecordScanner(f, total)
+    yield from scan
+    if scan.problems:
+        offset, reason, count = scan.problems[0]
+        raise TruncatedRecordingError(f"truncated or corrupt MCAP at byte {offset} of {total}: {reason}",
+                                      offset=offset, total=total, messages=count)
 
 
 def _reason(exc: BaseException) -> str:
-    if isinstance(exc, CRCValidationError):
-        return f"CRC mismatch: {exc}"
-    name = type(exc).__name__
-    text = str(exc)
-    if name == "EndOfFile":
-        return "file ends in the middle of a record or without a footer"
-    return f"{name}: {text}" if text else name
+    return describe_error(exc)
 
 
 class RecordingReader:
@@ -163,9 +158,18 @@ class RecordingReader:
         self.path = os.fspath(path)
         self.strict = strict
         self.problem: str | None = None
-        self.total_bytes = os.path.getsize(self.path)
-        with open(self.path, "rb") as f:
-            head = f.read(len(MCAP_MAGIC))
+        self.problems: list[str] = []       # every problem of the last pass, first one in ``problem``
+        self.chunks_skipped = 0             # corrupt chunks skipped in the last pass
+        if os.path.isdir(self.path):
+            raise RecordingError(f"{self.path}: is a directory, expected an MCAP recording file")
+        try:
+            self.total_bytes = os.path.getsize(self.path)
+            with open(self.path, "rb") as f:
+                head = f.read(len(MCAP_MAGIC))
+        except FileNotFoundError:
+            raise RecordingError(f"{self.path}: no such recording") from None
+        except OSError as exc:
+            raise RecordingError(f"{self.path}: cannot read the recording: {exc.strerror or exc}") from None
         if head != MCAP_MAGIC:
             raise NotMcapError(f"{self.path}: not an MCAP file (expected magic {MCAP_MAGIC!r}, "
                                f"got {head!r}, file size {self.total_bytes} bytes)")
@@ -180,23 +184,23 @@ class RecordingReader:
 
     def _read_head(self) -> None:
         with open(self.path, "rb") as f:
-            try:
-                reader = StreamReader(f, emit_chunks=True, validate_crcs=False,
-                                      record_size_limit=max(self.total_bytes, 1))
-                for record in reader.records:
-                    if isinstance(record, Metadata):
-                        self._metadata[record.name] = dict(record.metadata)
-                    elif isinstance(record, Attachment):
-                        self._attachments[record.name] = bytes(record.data)
-                    elif isinstance(record, (Chunk, Message)):
-                        break
-            except (McapError, struct.error, ValueError, EOFError):
-                pass  # reported by the full pass
+            for record, _ in RecordScanner(f, self.total_bytes, head_only=True):
+                if isinstance(record, Metadata):
+                    self._metadata[record.name] = dict(record.metadata)
+                elif isinstance(record, Attachment):
+                    self._attachments[record.name] = bytes(record.data)
+                elif isinstance(record, Message):
+                    break
+            # problems are reported by the full pass
 
     def _load_profile(self) -> Profile | None:
         meta = self._metadata.get(PROFILE_METADATA)
         if meta is None or "json" not in meta:
             return None
+        digest = meta.get("sha256")
+        if digest is not None and hashlib.sha256(meta["json"].encode()).hexdigest() != digest:
+            raise RecordingError(f"{self.path}: recorded profile fails its sha256 check "
+                                 f"(the profile metadata is corrupt); cannot trust this recording")
         try:
             return profile_from_dict(json.loads(meta["json"]), source=f"{self.path} (recorded profile)")
         except (ValueError, ProfileError) as exc:
@@ -234,7 +238,7 @@ class RecordingReader:
         try:
             with open(self.path, "rb") as f:
                 return make_reader(f, validate_crcs=True).get_summary()
-        except (McapError, struct.error, ValueError, EOFError, OSError):
+        except (*CORRUPT_ERRORS, OSError):
             return None
 
     @property
@@ -245,40 +249,65 @@ class RecordingReader:
     # -- messages --------------------------------------------------------------------------------
 
     def messages(self, topics: list[str] | None = None) -> Iterator[RecordedMessage]:
-        """Every message in file order, decoded (see `RecordedMessage`); raises at a bad record."""
+        """Every message in file order, decoded (see `RecordedMessage`).
+
+        Corrupt chunks are skipped (counted in ``chunks_skipped``) and reading goes on with the next
+        valid one; at the end, the first problem raises `TruncatedRecordingError` (``strict``) or is
+        left in ``problem``."""
         schemas: dict[int, Schema] = {}
         channels: dict[int, Channel] = {}
-        count, offset, last_time = 0, len(MCAP_MAGIC), None
-        self.problem = None
+        count, last_time = 0, None
+        bad: list[tuple[int, str, int, int | None]] = []  # (offset, reason, messages before, last time)
+        self.problem, self.problems, self.chunks_skipped = None, [], 0
         with open(self.path, "rb") as f:
-            try:
-                for record, end in scan_records(f, self.total_bytes):
-                    if isinstance(record, Schema):
-                        schemas[record.id] = record
-                    elif isinstance(record, Channel):
-                        channels[record.id] = record
-                    elif isinstance(record, Message):
-                        channel = channels[record.channel_id]
+            spare_schemas, spare_channels = summary_definitions(f)  # if the defining chunk is corrupt
+            scan = RecordScanner(f, self.total_bytes)
+            seen = 0
+            for record, end in scan:
+                while seen < len(scan.problems):
+                    bad.append((*scan.problems[seen][:2], count, last_time))
+                    seen += 1
+                if isinstance(record, Schema):
+                    schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    channels[record.id] = record
+                elif isinstance(record, Message):
+                    channel = channels.get(record.channel_id) or spare_channels.get(record.channel_id)
+                    if channel is not None and channel.schema_id not in schemas \
+                            and channel.schema_id in spare_schemas:
+                        schemas[channel.schema_id] = spare_schemas[channel.schema_id]
+                    if channel is None:
+                        bad.append((end, f"message on unknown channel {record.channel_id}", count, last_time))
+                        continue
+                    if topics is not None and channel.topic not in topics:
                         count += 1
                         last_time = record.log_time
-                        if topics is None or channel.topic in topics:
-                            schema = schemas.get(channel.schema_id)
-                            yield RecordedMessage(channel.topic, record.log_time, record.sequence,
-                                                  schema.name if schema else "",
-                                                  _decode(schema, channel, record.data))
-                    elif isinstance(record, Footer):
-                        offset = end
-                        break
-                    offset = end
-            except (McapError, struct.error, ValueError, EOFError, KeyError) as exc:
-                pos = f"{offset} of {self.total_bytes}"
-                when = f" (last log time {last_time} ns)" if last_time is not None else ""
-                msg = (f"{self.path}: truncated or corrupt MCAP at byte {pos}: {_reason(exc)}; "
-                       f"read {count} messages before it{when}")
-                self.problem = msg
-                if self.strict:
-                    raise TruncatedRecordingError(msg, offset=offset, total=self.total_bytes,
-                                                  messages=count) from None
+                        continue
+                    schema = schemas.get(channel.schema_id)
+                    try:
+                        value = _decode(schema, channel, record.data)
+                    except (*CORRUPT_ERRORS, DecodeError) as exc:
+                        bad.append((end, f"undecodable message on {channel.topic}: {describe_error(exc)}",
+                                    count, last_time))
+                        continue
+                    count += 1
+                    last_time = record.log_time
+                    yield RecordedMessage(channel.topic, record.log_time, record.sequence,
+                                          schema.name if schema else "", value)
+            bad += [(*p[:2], count, last_time) for p in scan.problems[seen:]]
+            self.chunks_skipped = scan.chunks_skipped
+        if bad:
+            self.problems = [f"byte {o}: {r}" for o, r, _, _ in bad]
+            offset, reason, before, when_ns = bad[0]
+            when = f" (last log time {when_ns} ns)" if when_ns is not None else ""
+            msg = (f"{self.path}: truncated or corrupt MCAP at byte {offset} of {self.total_bytes}: {reason}; "
+                   f"read {before} messages before it{when}")
+            if len(bad) > 1 or count > before:
+                msg += (f"; {len(bad) - 1} more problem(s) after it, {scan.chunks_skipped} corrupt chunk(s) "
+                        f"skipped, {count} messages read in all")
+            self.problem = msg
+            if self.strict:
+                raise TruncatedRecordingError(msg, offset=offset, total=self.total_bytes, messages=before)
 
     def frames(self) -> Iterator[RecordedFrame]:
         """Recorded camera frames in file order with their raw_info metadata."""

@@ -2,9 +2,10 @@
 
 A SIGKILLed writer leaves the header, metadata, attachments and every chunk it completed, then
 possibly part of a chunk, and no summary or footer. `recover` reads the file record by record
-(chunk CRCs checked), stops at the first incomplete or corrupt record, and writes everything
-before it (schemas, channels, messages, metadata, attachments) into a new, finalised MCAP file with
-the same chunk compression. It returns a `RecoveryReport`; a file that is fine is simply copied
+(`RecordScanner`: every CRC checked), skips a corrupt chunk (counted in ``chunks_skipped``) and goes
+on with the next valid one, stops at the end of the readable data, and writes everything readable
+(schemas, channels, messages, metadata, attachments) into a new, finalised MCAP file with the same
+chunk compression. It returns a `RecoveryReport`; a file that is fine is simply copied
 record by record (``report.complete_input`` is True). Non-MCAP input raises `NotMcapError`.
 """
 
@@ -12,16 +13,15 @@ from __future__ import annotations
 
 import json
 import os
-import struct
 from dataclasses import dataclass, field
 
-from mcap.exceptions import McapError
 from mcap.records import Attachment, Channel, Chunk, Footer, Header, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from .mcap_format import MCAP_PROFILE
-from .mcap_reader import MCAP_MAGIC, NotMcapError, _reason
+from .mcap_reader import NotMcapError, RecordingError
+from .mcap_scan import CORRUPT_ERRORS, MCAP_MAGIC, RecordScanner, summary_definitions
 
 __all__ = ["RecoveryReport", "recover"]
 
@@ -40,8 +40,11 @@ class RecoveryReport:
     stacks: list[int] = field(default_factory=list)        # stack ids seen in raw_info messages
     first_log_time: int | None = None
     last_log_time: int | None = None
-    complete_input: bool = False  # the input had a footer (nothing was lost)
-    reason: str = ""              # why reading stopped, if it stopped early
+    complete_input: bool = False  # the input had a footer and no problem (nothing was lost)
+    reason: str = ""              # the first problem found (why reading stopped, if it stopped early)
+    chunks_skipped: int = 0       # corrupt chunks skipped (their messages are lost)
+    bytes_skipped: int = 0        # input bytes skipped over corrupt records
+    problems: int = 0             # problems found in all
 
     def __str__(self) -> str:
         head = (f"recovered {self.messages} messages in {self.chunks} chunks "
@@ -50,7 +53,10 @@ class RecoveryReport:
             return head + "; the input was complete"
         topics = ", ".join(f"{t}: {n}" for t, n in sorted(self.topics.items()))
         lost = self.total_bytes - self.recovered_bytes
-        return f"{head}; {lost} trailing bytes dropped ({self.reason}); per topic: {topics or 'none'}"
+        skipped = (f"; {self.chunks_skipped} corrupt chunk(s) skipped ({self.bytes_skipped} bytes), "
+                   f"{self.problems} problem(s) in all" if self.chunks_skipped or self.problems > 1 else "")
+        return (f"{head}; {lost} trailing bytes dropped ({self.reason}){skipped}; "
+                f"per topic: {topics or 'none'}")
 
 
 def recover(path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
@@ -59,6 +65,10 @@ def recover(path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
     path, out_path = os.fspath(path), os.fspath(out_path)
     if os.path.abspath(path) == os.path.abspath(out_path):
         raise ValueError(f"expected an output path different from the input, got {out_path!r} for both")
+    if os.path.isdir(path):
+        raise RecordingError(f"{path}: is a directory, expected an MCAP recording file")
+    if os.path.isdir(out_path):
+        raise RecordingError(f"{out_path}: is a directory, expected the path of the recovered file")
     total = os.path.getsize(path)
     with open(path, "rb") as f:
         head = f.read(len(MCAP_MAGIC))
@@ -78,7 +88,7 @@ def recover(path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
                 if isinstance(record, Chunk):
                     compression = _COMPRESSION.get(record.compression, CompressionType.ZSTD)
                     break
-        except (McapError, struct.error, ValueError, EOFError):
+        except CORRUPT_ERRORS:
             pass
 
     schema_map: dict[int, int] = {}
@@ -89,26 +99,35 @@ def recover(path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
         writer = Writer(out, chunk_size=chunk_size, compression=compression, enable_crcs=True,
                         enable_data_crcs=True)
         writer.start(profile=header_profile, library=library)
+        spare_schemas, spare_channels = summary_definitions(f)  # if the defining chunk is corrupt
+        scan = RecordScanner(f, total)
         try:
-            reader = StreamReader(f, emit_chunks=True, validate_crcs=True, record_size_limit=max(total, 1))
-            for record in reader.records:
-                end = f.tell()
-                if isinstance(record, Chunk):
-                    inner = breakup_chunk(record, validate_crc=True)  # raises on a corrupt chunk
-                    for r in inner:
-                        _copy(writer, r, schema_map, channel_map, topics_by_id, report, stacks)
-                    report.chunks += 1
-                elif isinstance(record, Footer):
-                    report.complete_input = True
+            for record, end in scan:
+                if isinstance(record, Footer):
+                    report.complete_input = not scan.problems
                     report.recovered_bytes = total
                     break
-                elif isinstance(record, (Schema, Channel, Message, Metadata, Attachment)):
-                    _copy(writer, record, schema_map, channel_map, topics_by_id, report, stacks)
+                if isinstance(record, (Schema, Channel, Message, Metadata, Attachment)):
+                    if isinstance(record, Message) and record.channel_id not in channel_map \
+                            and record.channel_id in spare_channels:
+                        channel = spare_channels[record.channel_id]
+                        if channel.schema_id in spare_schemas:
+                            _copy(writer, spare_schemas[channel.schema_id], schema_map, channel_map,
+                                  topics_by_id, report, stacks)
+                        _copy(writer, channel, schema_map, channel_map, topics_by_id, report, stacks)
+                    try:
+                        _copy(writer, record, schema_map, channel_map, topics_by_id, report, stacks)
+                    except KeyError:  # a message of a channel lost in a skipped chunk
+                        continue
                 report.recovered_bytes = end
-        except (McapError, struct.error, ValueError, EOFError, KeyError) as exc:
-            report.reason = f"{_reason(exc)} at byte {report.recovered_bytes}"
+            report.chunks = scan.chunks_ok
         finally:
             writer.finish()
+    report.chunks_skipped, report.bytes_skipped = scan.chunks_skipped, scan.bytes_skipped
+    report.problems = len(scan.problems)
+    if scan.problems:
+        offset, reason, _ = scan.problems[0]
+        report.reason = reason if f"byte {offset}" in reason else f"{reason} at byte {offset}"
     report.stacks = sorted(stacks)
     return report
 

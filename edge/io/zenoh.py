@@ -16,7 +16,11 @@ Keys (``<prefix>/<device>`` from the profile's ``[zenoh]`` table, e.g. ``sl/sim-
                             parsed as JSON when they parse) -> validated update: the reply is the new
                             profile, or ``reply_err`` with ``config update rejected: <reason>``; on
                             any error the running profile is kept. ``zenoh.*`` and ``name`` cannot
-                            change while running.
+                            change while running. Writes are refused unless the profile sets
+                            ``[zenoh] config_writes = true`` (reads always work); beyond loopback
+                            the profile must also carry zenoh ACL rules (``zenoh.access_control``).
+                            Payloads over `MAX_CONFIG_BYTES` are refused unread; a rejection
+                            message is one line of at most `MAX_REASON_CHARS` characters.
 ``sl/<device>/alive``       liveliness token, present while the publisher is open.
 ``sl/<device>/points``      the point cloud of each depth map (`DepthPublisher.publish_points`):
                             N*12 bytes, N points of float32 little-endian x y z in metres in the
@@ -77,6 +81,10 @@ __all__ = [
 ]
 
 HEADER_VERSION = 1
+#: Largest config-update payload (or parameter string) read, in bytes.
+MAX_CONFIG_BYTES = 64 * 1024
+#: Longest rejection reason sent back (the value that caused it is never echoed whole).
+MAX_REASON_CHARS = 300
 _DEPTH_ENCODING = zenoh.Encoding.APPLICATION_OCTET_STREAM.with_schema("16UC1")
 _CONF_ENCODING = zenoh.Encoding.APPLICATION_OCTET_STREAM.with_schema("mono8")
 _DTYPES = {"16UC1": np.dtype("<u2"), "mono8": np.dtype(np.uint8)}
@@ -86,14 +94,26 @@ class ConfigRejected(ValueError):
     """The service rejected a config update (or a config query failed); the message is its reason."""
 
 
+class _RuntimeRejected(Exception):
+    """A rejection made by ``on_update`` (the runtime counts those itself)."""
+
+
+def one_line(text: str, limit: int = MAX_REASON_CHARS) -> str:
+    """``text`` on one line, cut to ``limit`` characters with the full length said."""
+    line = " ".join(str(text).split())
+    return line if len(line) <= limit else f"{line[:limit]}... ({len(line)} characters)"
+
+
 # -- sessions ------------------------------------------------------------------------------------
 
 
 def make_config(*, mode: str = "peer", listen: Iterable[str] = (), connect: Iterable[str] = (),
-                multicast_scouting: bool = False, connect_timeout_s: float = 0.0) -> zenoh.Config:
-    """A zenoh.Config with the mode, endpoints and multicast scouting set (nothing else but, for a
-    client with ``connect_timeout_s`` > 0, ``connect/timeout_ms``: how long ``zenoh.open`` waits
-    for one of the ``connect`` routers before it fails)."""
+                multicast_scouting: bool = False, connect_timeout_s: float = 0.0,
+                access_control: str = "") -> zenoh.Config:
+    """A zenoh.Config with the mode, endpoints, multicast scouting and (if given) the JSON text of
+    zenoh's ``access_control`` (ACL) object set (nothing else but, for a client with
+    ``connect_timeout_s`` > 0, ``connect/timeout_ms``: how long ``zenoh.open`` waits for one of the
+    ``connect`` routers before it fails)."""
     conf = zenoh.Config()
     if mode == "client" and connect_timeout_s > 0:
         conf.insert_json5("connect/timeout_ms", json.dumps(int(round(connect_timeout_s * 1000))))
@@ -101,6 +121,8 @@ def make_config(*, mode: str = "peer", listen: Iterable[str] = (), connect: Iter
     conf.insert_json5("listen/endpoints", json.dumps(list(listen)))
     conf.insert_json5("connect/endpoints", json.dumps(list(connect)))
     conf.insert_json5("scouting/multicast/enabled", json.dumps(bool(multicast_scouting)))
+    if access_control:
+        conf.insert_json5("access_control", access_control)
     return conf
 
 
@@ -118,7 +140,8 @@ def open_session(settings: ZenohSettings) -> zenoh.Session:
     """A zenoh session configured from a profile's ``[zenoh]`` table."""
     return zenoh.open(make_config(mode=settings.mode, listen=settings.listen, connect=settings.connect,
                                   multicast_scouting=settings.multicast_scouting,
-                                  connect_timeout_s=settings.connect_timeout_s))
+                                  connect_timeout_s=settings.connect_timeout_s,
+                                  access_control=getattr(settings, "access_control", "")))
 
 
 # -- header / payload ----------------------------------------------------------------------------
@@ -204,12 +227,16 @@ class DepthPublisher:
     (raise ValueError with a reason to reject it); by default `apply_update` is used and the new
     profile only stored here. It runs on a zenoh thread, serialised by a lock. ``session``: an
     existing session to use (not closed by `close`); default: one opened from ``profile.zenoh``.
+    ``on_reject(reason)`` is called for every rejection made here, before ``on_update`` (writes
+    disabled, a payload too large or not JSON, frozen tables); ``rejected`` counts them too.
     """
 
     def __init__(self, profile: Profile, *, on_update: Callable[[dict[str, Any]], Profile] | None = None,
-                 session: zenoh.Session | None = None):
+                 session: zenoh.Session | None = None, on_reject: Callable[[str], None] | None = None):
         self._profile = profile
         self._on_update = on_update
+        self._on_reject = on_reject
+        self.rejected = 0
         self._lock = threading.Lock()
         self._closed = False
         z = profile.zenoh
@@ -289,10 +316,26 @@ class DepthPublisher:
             query.reply(self.keys["config"], json.dumps(profile_to_dict(new)).encode(),
                         encoding=zenoh.Encoding.APPLICATION_JSON)
         except Exception as exc:  # every failure goes back to the caller, never kills the service
-            reason = str(exc).replace("\n", " ")
-            query.reply_err(f"config update rejected: {reason}".encode(), encoding=zenoh.Encoding.TEXT_PLAIN)
+            reason = one_line(str(exc))
+            if not isinstance(exc, _RuntimeRejected):
+                self.rejected += 1
+                if self._on_reject is not None:
+                    try:
+                        self._on_reject(reason)
+                    except Exception:
+                        pass
+            try:
+                query.reply_err(f"config update rejected: {reason}".encode(), encoding=zenoh.Encoding.TEXT_PLAIN)
+            except Exception:
+                pass
 
     def _update(self, payload: bytes, params: Mapping[str, str]) -> Profile:
+        if not self._profile.zenoh.config_writes:
+            raise ValueError(f"config writes are off on {self._profile.zenoh.device} (its profile must set "
+                             f"[zenoh] config_writes = true; reads need no permission)")
+        size = len(payload) + sum(len(k) + len(v) for k, v in params.items())
+        if size > MAX_CONFIG_BYTES:
+            raise ValueError(f"expected a config update of at most {MAX_CONFIG_BYTES} bytes, got {size}")
         if payload and params:
             raise ValueError("expected a JSON payload or parameters, got both")
         if payload:
@@ -309,7 +352,10 @@ class DepthPublisher:
             raise ValueError(f"{frozen[0]} cannot change while running (restart with another profile)")
         with self._lock:
             if self._on_update is not None:
-                new = self._on_update(update)
+                try:
+                    new = self._on_update(update)
+                except Exception as exc:
+                    raise _RuntimeRejected(str(exc)) from exc
                 if not isinstance(new, Profile):
                     raise ValueError(f"on_update returned {type(new).__name__}, expected a Profile")
             else:

@@ -90,6 +90,11 @@ def load_profile(name_or_path: str | os.PathLike[str] = DEFAULT_PROFILE) -> Prof
             data = tomllib.load(f)
     except tomllib.TOMLDecodeError as exc:
         raise ProfileError(source, "", f"not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:  # binary or latin-1 files: TOML is UTF-8
+        raise ProfileError(source, "", f"not valid TOML: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} "
+                                       f"at offset {exc.start})") from None
+    except OSError as exc:
+        raise ProfileError(source, "", f"cannot read the file: {exc.strerror or exc}") from None
     return build_profile(data, source=source)
 
 

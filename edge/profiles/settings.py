@@ -19,13 +19,13 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     kind = "columns"                      # columns (DLP code patterns) | dots | line
     width = 1024                          # projector columns
     height = 768
-    rate_hz = 120.0                       # frames per second
-    stripe = 1                            # projector columns per codeword (architecture.md)
+    rate_hz = 120.0                       # frames per second (>= 1)
+    stripe = 1                            # projector columns per codeword (architecture.md); <= width / 2
 
     [camera]
-    width = 640
+    width = 640                           # >= 2 (also height)
     height = 480
-    rate_hz = 120.0
+    rate_hz = 120.0                       # >= 1 frame per second
     bits = 8                              # 8 | 10 | 12 | 16 (uint8 for 8, uint16 otherwise)
     exposure_us = 8000.0                  # <= 1e6 / rate_hz
     sigma_r = 0.004                       # read noise, std dev on the [0, 1] intensity scale
@@ -33,19 +33,22 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
 
     [code]
     name = "ecc-22-10"                    # edge.codes.get_code name; "" only for dots / line projectors
-    source = ""                           # light-source code bit string ("" = none), e.g. "1101"
+    source = ""                           # light-source code bit string ("" = none), e.g. "1101";
+                                          # a stack (frames x pixels) must fit STACK_PIXEL_BUDGET
 
     [decoder]
-    method = "soft"                       # soft | hard | list | median | block-match | curtain
-    min_contrast = 0.02                   # white - black below this (0..1 scale) -> invalid pixel
-    min_confidence = 0.0                  # confidence below this (0..1) -> invalid pixel
+    method = "soft"                       # columns: edge.decode.METHODS (soft | hard | list | median |
+                                          # list+median); dots: block-match; line: curtain
+    min_contrast = 0.02                   # white - black below this (0..1 scale, < 1) -> invalid pixel
+    min_confidence = 0.0                  # confidence below this (0..1, < 1) -> invalid pixel
     min_disparity = -176                  # disparity band, pixels (architecture.md convention)
     max_disparity = -64
 
     [edc]
     rounds = 0                            # adaptive re-projection rounds (0 = EDC loop off)
 
-    [geometry]                            # rectified, Middlebury convention (architecture.md)
+    [geometry]                            # rectified, Middlebury convention (architecture.md); the depth
+                                          # over the disparity band must overlap 1..65535 mm
     baseline_m = 0.08
     focal_px = 560.0
     cx_camera = 320.0
@@ -59,8 +62,11 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     listen = ["tcp/127.0.0.1:7451"]
     connect = []
     multicast_scouting = false
-    status_period_s = 1.0
+    status_period_s = 1.0                 # >= 0.05 s
     connect_timeout_s = 0.0               # client: wait up to S s at start-up for a router (0: fail at once)
+    config_writes = false                 # accept config updates on <prefix>/<device>/config (reads always)
+    access_control = ""                   # zenoh ACL: the JSON object of zenoh's "access_control" config,
+                                          # required when config_writes is on beyond loopback (README)
 
     [recording]
     chunk_size = 4194304                  # bytes of uncompressed messages per MCAP chunk
@@ -120,14 +126,43 @@ __all__ = [
     "profile_to_dict",
     "DECODER_METHODS",
     "SENSOR_BACKENDS",
+    "decoder_methods",
+    "STACK_PIXEL_BUDGET",
 ]
 
 SENSOR_BACKENDS = ("sim", "replay", "oak", "event")
 PROJECTOR_KINDS = ("columns", "dots", "line")
-DECODER_METHODS = ("soft", "hard", "list", "median", "block-match", "curtain")
 ZENOH_MODES = ("peer", "client", "router")
 COMPRESSIONS = ("zstd", "lz4", "none")
 CAMERA_BITS = (8, 10, 12, 16)
+#: decoder.method of the non-column pipelines, by projector.kind (columns: `edge.decode.METHODS`)
+PIPELINE_METHODS = {"dots": ("block-match",), "line": ("curtain",)}
+#: Frames x pixels of one stack at most (about 10 bytes of working memory each: ~1.3 GB).
+STACK_PIXEL_BUDGET = 1 << 27
+#: Camera / projector frame rate at least (Hz): slower, one stack takes minutes to hours.
+MIN_RATE_HZ = 1.0
+#: The depth output is uint16 millimetres, 0 = invalid.
+DEPTH_RANGE_MM = (1.0, 65535.0)
+
+
+def decoder_methods(projector_kind: str | None = None) -> tuple[str, ...]:
+    """The decoder.method values a ``projector_kind`` profile may use (all of them for None).
+
+    Column codes use `edge.decode.METHODS` (the decoder's own list, the one source); dot projectors
+    are block-matched and a line projector is decoded by the light-curtain pipeline."""
+    from edge.decode.decoder import METHODS
+
+    if projector_kind == "columns":
+        return tuple(METHODS)
+    if projector_kind is not None:
+        return PIPELINE_METHODS.get(projector_kind, ())
+    return tuple(METHODS) + tuple(m for ms in PIPELINE_METHODS.values() for m in ms)
+
+
+def __getattr__(name: str) -> Any:  # DECODER_METHODS is derived lazily (edge.decode imports numba)
+    if name == "DECODER_METHODS":
+        return decoder_methods()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 _NAME = r"[a-z0-9][a-z0-9_-]*"
 _KEY_CHUNK = r"[A-Za-z0-9_-]+"
@@ -146,9 +181,10 @@ class ProfileError(ValueError):
 
 
 def _f(default: Any = dataclasses.MISSING, *, lo: float | None = None, hi: float | None = None,
-       lo_open: bool = False, choices: tuple | None = None, pattern: str | None = None) -> Any:
+       lo_open: bool = False, hi_open: bool = False, choices: tuple | None = None,
+       pattern: str | None = None) -> Any:
     """A dataclass field with validation metadata (range, allowed values, regex)."""
-    meta = {"lo": lo, "hi": hi, "lo_open": lo_open, "choices": choices, "pattern": pattern}
+    meta = {"lo": lo, "hi": hi, "lo_open": lo_open, "hi_open": hi_open, "choices": choices, "pattern": pattern}
     if isinstance(default, (list, tuple)):
         value = tuple(default)
         return field(default_factory=lambda: value, metadata=meta)
@@ -173,8 +209,8 @@ class ProjectorSettings:
 
 @dataclass(frozen=True)
 class CameraSettings:
-    width: int = _f(lo=1, hi=65536)
-    height: int = _f(lo=1, hi=65536)
+    width: int = _f(lo=2, hi=65536)
+    height: int = _f(lo=2, hi=65536)
     rate_hz: float = _f(lo=0.0, hi=1e6, lo_open=True)
     exposure_us: float = _f(lo=0.0, lo_open=True)
     bits: int = _f(8, choices=CAMERA_BITS)
@@ -192,9 +228,9 @@ class CodeSettings:
 class DecoderSettings:
     min_disparity: int = _f(lo=-65536, hi=65536)
     max_disparity: int = _f(lo=-65536, hi=65536)
-    method: str = _f("soft", choices=DECODER_METHODS)
-    min_contrast: float = _f(0.0, lo=0.0, hi=1.0)
-    min_confidence: float = _f(0.0, lo=0.0, hi=1.0)
+    method: str = _f("soft")  # checked against the pipeline kind in _check_profile
+    min_contrast: float = _f(0.0, lo=0.0, hi=1.0, hi_open=True)
+    min_confidence: float = _f(0.0, lo=0.0, hi=1.0, hi_open=True)
 
 
 @dataclass(frozen=True)
@@ -224,8 +260,10 @@ class ZenohSettings:
     listen: tuple[str, ...] = _f(("tcp/127.0.0.1:7451",), pattern=_ENDPOINT)
     connect: tuple[str, ...] = _f((), pattern=_ENDPOINT)
     multicast_scouting: bool = _f(False)
-    status_period_s: float = _f(1.0, lo=0.0, hi=3600.0, lo_open=True)
+    status_period_s: float = _f(1.0, lo=0.05, hi=3600.0)
     connect_timeout_s: float = _f(0.0, lo=0.0, hi=3600.0)
+    config_writes: bool = _f(False)
+    access_control: str = _f("")
 
     def key(self, leaf: str) -> str:
         """``<prefix>/<device>/<leaf>``, e.g. ``sl/sim-dlp/depth``."""
@@ -335,8 +373,9 @@ def _check_scalar(tp: Any, value: Any, meta: Mapping[str, Any], source: str, key
     if lo is not None and (value <= lo if meta.get("lo_open") else value < lo):
         op = ">" if meta.get("lo_open") else ">="
         raise ProfileError(source, key, f"expected a value {op} {lo:g}, got {value!r}")
-    if hi is not None and value > hi:
-        raise ProfileError(source, key, f"expected a value <= {hi:g}, got {value!r}")
+    if hi is not None and (value >= hi if meta.get("hi_open") else value > hi):
+        op = "<" if meta.get("hi_open") else "<="
+        raise ProfileError(source, key, f"expected a value {op} {hi:g}, got {value!r}")
     return value
 
 
@@ -400,12 +439,112 @@ def _check_profile(p: Profile, source: str) -> None:
             source, "decoder.min_disparity",
             f"expected min_disparity + doffs > 0 so depth is finite over the band "
             f"(doffs = cx_projector - cx_camera = {doffs:g}), got {p.decoder.min_disparity}")
+    _check_pipeline(p, source)
     period_us = 1e6 / p.camera.rate_hz
     if p.camera.exposure_us > period_us:
         raise ProfileError(source, "camera.exposure_us",
                            f"expected <= the frame period 1e6 / rate_hz = {period_us:g}, got {p.camera.exposure_us:g}")
     if p.zenoh.mode == "client" and not p.zenoh.connect:
         raise ProfileError(source, "zenoh.connect", "expected at least one endpoint in client mode, got []")
+    _check_access(p.zenoh, source)
+
+
+def _check_pipeline(p: Profile, source: str) -> None:
+    """Settings that validate one by one but make a pipeline that fails or yields no valid depth."""
+    from edge.codes import get_code
+
+    kind = p.projector.kind
+    methods = decoder_methods(kind)
+    if p.decoder.method not in methods:
+        raise ProfileError(source, "decoder.method",
+                           f"expected one of {', '.join(map(repr, methods))} for a {kind!r} projector, "
+                           f"got {p.decoder.method!r}")
+    d_lo, d_hi = p.decoder.min_disparity, p.decoder.max_disparity
+    if kind == "columns":
+        if 2 * p.projector.stripe > p.projector.width:
+            raise ProfileError(source, "projector.stripe",
+                               f"expected <= projector.width / 2 = {p.projector.width // 2} so the projector "
+                               f"sends at least two codewords, got {p.projector.stripe}")
+        first, last = -d_hi, p.camera.width - 1 - d_lo   # candidate columns x - max_d .. x - min_d
+        if last < 0 or first > p.projector.width - 1:
+            raise ProfileError(
+                source, "decoder.min_disparity" if last < 0 else "decoder.max_disparity",
+                f"expected a disparity band whose candidate columns (x - max_disparity .. x - min_disparity "
+                f"= {first}..{last} over the camera) meet the projector's columns 0..{p.projector.width - 1}, "
+                f"got min_disparity {d_lo}, max_disparity {d_hi}")
+    g = p.geometry
+    scale = g.focal_px * g.baseline_m * 1000.0
+    near, far = scale / (d_hi + g.doffs), scale / (d_lo + g.doffs)   # mm at the band's ends
+    lo_mm, hi_mm = DEPTH_RANGE_MM
+    if near > hi_mm or far < lo_mm:
+        raise ProfileError(
+            source, "geometry.baseline_m",
+            f"expected focal_px * baseline_m / (d + doffs) to reach the depth output range {lo_mm:g}..{hi_mm:g} mm "
+            f"somewhere in the disparity band, got {near:.3g}..{far:.3g} mm (focal_px {g.focal_px:g}, "
+            f"baseline_m {g.baseline_m:g}, doffs {g.doffs:g}, band {d_lo}..{d_hi})")
+    n = get_code(p.code.name).n if p.code.name else 1
+    frames = (n + 2) * max(1, len(p.code.source))
+    for table in ("camera", "projector"):
+        rate = getattr(p, table).rate_hz
+        if rate < MIN_RATE_HZ:
+            raise ProfileError(source, f"{table}.rate_hz",
+                               f"expected >= {MIN_RATE_HZ:g} Hz (a stack of about {frames} frames would take "
+                               f"{frames / rate:.3g} s), got {rate:g}")
+    pixels = p.camera.width * p.camera.height
+    if frames * pixels > STACK_PIXEL_BUDGET:
+        raise ProfileError(
+            source, "code.source" if p.code.source else "camera.width",
+            f"expected a stack of at most {STACK_PIXEL_BUDGET} frame-pixels (about 10 bytes each while decoding), "
+            f"got about {frames} frames of {p.camera.width}x{p.camera.height} = {frames * pixels}"
+            + (f" with a {len(p.code.source)}-slot source code" if p.code.source else ""))
+    if p.sim.projector <= p.decoder.min_contrast:
+        raise ProfileError(source, "sim.projector",
+                           f"expected > decoder.min_contrast ({p.decoder.min_contrast:g}): below it no pixel reaches "
+                           f"the contrast the decoder asks for, got {p.sim.projector:g}")
+    from edge.sim.scenes import scene_names
+
+    names = scene_names()
+    if p.sim.scene not in names:
+        raise ProfileError(source, "sim.scene", f"expected one of {', '.join(names)}, got {p.sim.scene!r}")
+
+
+_LOOPBACK = re.compile(r"(tcp|udp|tls|quic|ws)/(127\.\d+\.\d+\.\d+|localhost|\[::1\]):\d+([#?].*)?|unixsock-stream/.*")
+
+
+def is_loopback(endpoint: str) -> bool:
+    """True for a zenoh endpoint only this host can reach (127.x, localhost, [::1], unix socket)."""
+    return bool(_LOOPBACK.fullmatch(endpoint))
+
+
+def _check_access(z: "ZenohSettings", source: str) -> None:
+    """Config writes beyond loopback need zenoh's own access control (ACL rules)."""
+    import json
+
+    if z.access_control:
+        try:
+            acl = json.loads(z.access_control)
+        except ValueError as exc:
+            raise ProfileError(source, "zenoh.access_control",
+                               f"expected the JSON object of zenoh's access_control config, got invalid JSON ({exc})") from None
+        if not isinstance(acl, dict):
+            raise ProfileError(source, "zenoh.access_control",
+                               f"expected the JSON object of zenoh's access_control config, got {_type_name(acl)}")
+        import zenoh  # zenoh's own parser names a wrong field or type
+
+        try:
+            zenoh.Config().insert_json5("access_control", z.access_control)
+        except Exception as exc:
+            text = " ".join(str(exc).split())[:300]
+            raise ProfileError(source, "zenoh.access_control", f"zenoh rejects the ACL config: {text}") from None
+        return
+    if not z.config_writes:
+        return
+    open_to = [e for e in (*z.listen, *z.connect) if not is_loopback(e)]
+    if open_to or z.multicast_scouting:
+        what = f"endpoint {open_to[0]}" if open_to else "multicast scouting"
+        raise ProfileError(source, "zenoh.config_writes",
+                           f"expected zenoh.access_control rules (zenoh ACL) when config writes are on and the "
+                           f"session is reachable beyond loopback ({what}); see README 'Who may change the sensor'")
 
 
 def build_profile(data: Mapping[str, Any], source: str = "<dict>") -> Profile:

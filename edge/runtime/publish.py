@@ -23,8 +23,9 @@ class ZenohSink:
         from edge.io.ros import frame_ids
 
         on_update = service.update_config if service is not None else _reject_updates
+        on_reject = getattr(service, "count_config_rejection", None)  # rejections of the zenoh layer
         self.profile = profile
-        self.publisher = DepthPublisher(profile, on_update=on_update)
+        self.publisher = DepthPublisher(profile, on_update=on_update, on_reject=on_reject)
         self.frame_id = frame_ids(profile.zenoh.device)["optical"]
         self.sequence = 0
 

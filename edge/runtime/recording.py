@@ -9,6 +9,7 @@ drains the queue and finishes the file (summary, indexes, CRCs).
 
 from __future__ import annotations
 
+import json
 import os
 import threading
 import time
@@ -19,6 +20,14 @@ from edge.io.mcap_writer import Recorder
 
 from ..sensors.base import EventSlice, Frame, parse_projector_frame
 from .pipeline import DepthResult
+
+
+#: JSON schema of ``/<device>/config_change`` messages.
+CONFIG_CHANGE_SCHEMA = {
+    "type": "object", "title": "edge.ConfigChange",
+    "properties": {"time_ns": {"type": "integer"}, "keys": {"type": "array", "items": {"type": "string"}},
+                   "update": {"type": "object"}, "profile": {"type": "object"}},
+}
 
 
 class EdgeRecorder(Recorder):
@@ -36,6 +45,16 @@ class EdgeRecorder(Recorder):
         if self._events_channel is None:
             self._events_channel = register_events_channel(self)
         self.write_message(self._events_channel, data, log_time_ns=s.timestamp_ns, sequence=s.sequence)
+
+    _config_channel: int | None = None
+
+    def write_config_change(self, change: dict[str, Any]) -> None:
+        """One accepted config change on ``/<device>/config_change`` (schema ``edge.ConfigChange``)."""
+        if self._config_channel is None:
+            self._config_channel = self.register_channel("config_change", "edge.ConfigChange", "json",
+                                                         json.dumps(CONFIG_CHANGE_SCHEMA).encode())
+        self.write_message(self._config_channel, json.dumps(change, default=str).encode(),
+                           log_time_ns=int(change["time_ns"]))
 
     def write_record(self, record, **extra) -> None:
         """A `Frame` (``write_frame`` with its role) or an `EventSlice` (``write_events``)."""
@@ -98,7 +117,19 @@ class RecordingThread:
         if not self._enqueue("result", result, result.depth_mm.nbytes + result.confidence.nbytes):
             self.outputs_lost += 1
 
+    def on_config_change(self, change: dict[str, Any]) -> None:
+        """Queue an accepted config change for ``/<device>/config_change`` (JSON: time_ns, keys,
+        update, profile); never dropped for lack of queue space (it is small)."""
+        with self._cond:
+            if self._closing:
+                return
+            self._items.append(("config", change, 0))
+            self._cond.notify()
+
     def _write(self, kind: str, item: Any) -> None:
+        if kind == "config":
+            self.recorder.write_config_change(item)
+            return
         if kind == "frame":
             self.recorder.write_record(item)
             self.frames_written += 1

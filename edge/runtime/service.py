@@ -91,6 +91,7 @@ class Service:
         self.pipeline_stats: dict[str, int] = {}  # sums of every decoded stack's DepthResult.stats
         self.geometry_source = "profile"  # or "device calibration" (see _use_device_geometry)
         self._last_exposure_us: float | None = None
+        self.last_config_change: dict[str, Any] | None = None  # {"time_ns", "keys"} of the last accepted update
 
     # -- control ------------------------------------------------------------------------------
     def stop(self) -> None:
@@ -108,11 +109,12 @@ class Service:
         `ConfigRejected` / `edge.profiles.ProfileError` (both ValueError) and the running
         configuration is kept.  Returns the new profile.
         """
-        from edge.profiles import apply_update, changed_keys
+        from edge.profiles import apply_update, changed_keys, profile_to_dict
 
         try:
             new = apply_update(self.profile, update, source="config update")
-            frozen = [k for k in changed_keys(self.profile, new) if k.split(".")[0] not in LIVE_TABLES]
+            changed = changed_keys(self.profile, new)
+            frozen = [k for k in changed if k.split(".")[0] not in LIVE_TABLES]
             if frozen:
                 raise ConfigRejected(
                     f"cannot change {', '.join(frozen)} while running (live tables: {', '.join(LIVE_TABLES)})")
@@ -126,11 +128,24 @@ class Service:
             with self._lock:
                 self.counters.config_rejected += 1
             raise
+        change = {"time_ns": time.time_ns(), "keys": changed}
         with self._lock:
             self._pending_profile = (new, pipeline)
             self.profile = new
             self.counters.config_updates += 1
+            self.last_config_change = change
+        on_change = getattr(self.recorder, "on_config_change", None)
+        if on_change is not None:  # the recording says when the decoding settings changed, and to what
+            try:
+                on_change({**change, "update": dict(update), "profile": profile_to_dict(new)})
+            except Exception as exc:  # the change stands; the recording problem goes to status
+                self.counters.last_error = f"recorder: {type(exc).__name__}: {exc}"
         return new
+
+    def count_config_rejection(self, reason: str = "") -> None:
+        """Count a config update rejected before it reached `update_config` (the zenoh layer)."""
+        with self._lock:
+            self.counters.config_rejected += 1
 
     # -- threads ------------------------------------------------------------------------------
     def _capture_loop(self) -> None:
@@ -139,6 +154,9 @@ class Service:
                 try:
                     frame = self.sensor.read(0.1)
                 except EndOfStream:
+                    problem = getattr(self.sensor, "problem", None)  # e.g. a corrupt replayed recording
+                    if problem:
+                        self.counters.last_error = f"sensor: {problem}"
                     break
                 if frame is None:
                     continue
@@ -257,6 +275,7 @@ class Service:
             "sink_errors": self.counters.sink_errors,
             "config_updates": self.counters.config_updates,
             "config_rejected": self.counters.config_rejected,
+            "last_config_change": self.last_config_change,
             "recorder": self.recorder.stats() if self.recorder is not None and hasattr(self.recorder, "stats") else None,
             "sensor_stats": self.sensor.stats() if callable(getattr(self.sensor, "stats", None)) else None,
             "errors": self.counters.last_error,

@@ -81,8 +81,8 @@ class ReplaySensor:
                     continue
                 if not self._put(frame):
                     return
-        except ValueError as exc:  # a malformed event message: end of the readable part
-            self.problem = str(exc)
+        except Exception as exc:  # a malformed message: end of the readable part, said in status
+            self.problem = f"{self.path}: {type(exc).__name__}: {exc}" if not isinstance(exc, ValueError) else str(exc)
         finally:
             self.problem = self.problem or self.reader.problem
             self._frames.put(None)
