@@ -52,31 +52,36 @@ def frame_role(projector_frame: int) -> str:
     return f"edc-{role}" if pf.edc_round else role
 
 
-def rotated_path(path: str, index: int) -> str:
-    """``out.mcap`` -> ``out-0003.mcap`` (the ``index``-th file of a rotated recording)."""
+def rotated_path(path: str, series: str, index: int) -> str:
+    """``out.mcap`` -> ``out-20260101T120000Z-0003.mcap``: file ``index`` of the rotated recording
+    started at UTC time ``series`` (a restarted service starts a new series, never overwrites)."""
     stem, ext = os.path.splitext(path)
-    return f"{stem}-{index:04d}{ext or '.mcap'}"
+    return f"{stem}-{series}-{index:04d}{ext or '.mcap'}"
 
 
-def recording_paths(path: str, *, rotate: bool) -> list[str]:
-    """Existing files a recording to ``path`` would overwrite (rotated: every ``<stem>-NNNN.mcap``)."""
+def series_files(path: str) -> list[str]:
+    """Every rotated file of ``path`` on disk (all series), oldest first."""
     import glob
 
-    if not rotate:
-        return [path] if os.path.lexists(path) else []
     stem, ext = os.path.splitext(path)
-    return sorted(p for p in glob.glob(glob.escape(stem) + "-[0-9][0-9][0-9][0-9]" + glob.escape(ext or ".mcap")))
+    pattern = glob.escape(stem) + "-" + "[0-9]" * 8 + "T" + "[0-9]" * 6 + "Z-" + "[0-9]" * 4 + glob.escape(ext or ".mcap")
+    return sorted(glob.glob(pattern))
+
+
+def series_stamp() -> str:
+    return time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
 
 
 class RecordingThread:
     """Asynchronous recorder.  ``on_frame`` / ``on_result`` never block; ``close`` finishes the file.
 
     Rotation: with ``max_bytes`` and/or ``max_seconds`` the recording is a series of files
-    ``<stem>-0000.mcap``, ``<stem>-0001.mcap``, ... (`rotated_path`); a new file starts at the first
+    ``<stem>-<UTC start>-0000.mcap``, ``...-0001.mcap``, ... (`rotated_path`); a new file starts at the first
     stack boundary after the current file reached the size or age, and the previous file stays
     open until the depth output of its last stack is written, so every file holds whole stacks
-    with their outputs and replays on its own.  ``keep`` (> 0) deletes the oldest finished files
-    beyond that many (a bounded disk footprint for a long unattended run).
+    with their outputs and replays on its own.  ``keep`` (> 0) deletes the oldest rotated files of
+    ``path`` (earlier series included, e.g. from before a restart) beyond that many: a bounded disk
+    footprint for a long unattended run.
 
     Write failures (disk full, I/O error): recording stops at the first one, the file is finalised
     with what reached the disk (`edge.io.mcap_writer.Recorder`), ``error`` says why, and
@@ -95,6 +100,7 @@ class RecordingThread:
         self.keep = int(keep)
         self.rotate = bool(self.max_bytes or self.max_seconds)
         self.files: list[str] = []
+        self.series = series_stamp()
         self._index = 0
         self._old: EdgeRecorder | None = None
         self._old_last_stack = -1
@@ -125,7 +131,7 @@ class RecordingThread:
 
     # -- files ---------------------------------------------------------------------------------
     def _open_next(self) -> EdgeRecorder:
-        path = rotated_path(self.path, self._index) if self.rotate else self.path
+        path = rotated_path(self.path, self.series, self._index) if self.rotate else self.path
         rec = EdgeRecorder(path, self.profile, sensor_metadata=self.sensor_metadata)
         self._index += 1
         self.files.append(path)
@@ -150,19 +156,18 @@ class RecordingThread:
         self._prune()
 
     def _prune(self) -> None:
-        """With ``keep`` > 0, delete the oldest finished files until at most ``keep`` files remain."""
-        if self.keep <= 0:
+        """With ``keep`` > 0, delete the oldest rotated files until at most ``keep`` remain."""
+        if self.keep <= 0 or not self.rotate:
             return
         active = {r.path for r in (self.recorder, self._old) if r is not None}
-        while len(self.files) > self.keep:
-            victim = next((p for p in self.files if p not in active), None)
-            if victim is None:
-                return
+        files = series_files(self.path)
+        for victim in [p for p in files if p not in active][: max(0, len(files) - self.keep)]:
             try:
                 os.remove(victim)
             except OSError:
-                pass
-            self.files.remove(victim)
+                continue
+            if victim in self.files:
+                self.files.remove(victim)
 
     def _rotation_due(self) -> bool:
         if self.max_bytes and self.recorder.bytes_written >= self.max_bytes:
@@ -332,8 +337,8 @@ def check_record_path(path: str | os.PathLike[str], *, overwrite: bool = False, 
     Refused: a directory, a missing or unwritable folder, a name longer than the file system
     allows, something that is not a regular file (``/dev/full``, a FIFO), one of ``inputs`` (the
     replayed recording, also through a symlink or hard link), and an existing recording unless
-    ``overwrite`` (with ``rotate``: any existing ``<stem>-NNNN.mcap`` of the series).  Nothing
-    on disk is changed here.
+    ``overwrite`` (rotated recordings start a new, time-stamped series and never overwrite).
+    Nothing on disk is changed here.
     """
     path = os.fspath(path)
     if not path:
@@ -347,13 +352,13 @@ def check_record_path(path: str | os.PathLike[str], *, overwrite: bool = False, 
         name_max = os.pathconf(folder, "PC_NAME_MAX")
     except (OSError, ValueError):
         name_max = 255
-    names = [os.path.basename(rotated_path(path, 0) if rotate else path)]
+    names = [os.path.basename(rotated_path(path, series_stamp(), 0) if rotate else path)]
     if any(len(os.fsencode(n)) > name_max for n in names):
         raise ValueError(f"--record {path}: file name longer than the {name_max} bytes this file system allows")
     for other in inputs:
         if other and os.path.exists(other) and os.path.exists(path) and os.path.samefile(other, path):
             raise ValueError(f"--record {path} is the recording being replayed ({other}); record to another file")
-    existing = recording_paths(path, rotate=rotate)
+    existing = [] if rotate else ([path] if os.path.lexists(path) else [])
     for p in existing:
         if os.path.exists(p) and not os.path.isfile(p):
             raise ValueError(f"--record {p}: exists and is not a regular file; expected a file name")

@@ -189,6 +189,7 @@ class Service:
         thread = threading.Thread(target=work, name="edge-warmup", daemon=True)
         thread.start()
         while thread.is_alive() and not self._stop.is_set():
+            self.notifier.watchdog()  # alive while compiling (systemd's watchdog may already run)
             thread.join(0.05)
         self.warm_up_s = time.monotonic() - t0
         if errors:
