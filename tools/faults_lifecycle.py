@@ -202,6 +202,7 @@ def run_signal_trial(trial: SignalTrial, workdir: Path, *, cache_dir: str | None
     # before `edge run` installed its handlers (Python still importing, nothing opened): SIGINT
     # exits 130, SIGTERM / SIGHUP end the process by the signal; afterwards always 0
     early = trial.point == "import" and not rec["exists"] and rc in (130, -trial.sig)
+    res["early"] = early and rc != 0
     res["ok"] = ((rc == 0 or early) and not res["traceback"] and not res["unreadable"] and res["frames_missing"] == 0
                  and (res["summary"] or trial.point == "import"))
     res["output_tail"] = text[-1500:]
@@ -234,17 +235,20 @@ CI_TRIALS = [
 
 
 def full_trials() -> list[SignalTrial]:
-    """>= 20 points spread over the service's life, warm and cold numba cache."""
-    t = [SignalTrial("import", s) for s in (signal.SIGINT, signal.SIGTERM)]
-    t += [SignalTrial("warm-up", s, delay_s=d) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP) for d in (0.0, 0.5)]
-    t += [SignalTrial("quiet-warm-up", signal.SIGTERM, delay_s=0.5)]
-    t += [SignalTrial("first-stack", s) for s in (signal.SIGINT, signal.SIGTERM)]
-    t += [SignalTrial("steady", s, delay_s=d) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP) for d in (0.0, 1.0)]
-    t += [SignalTrial("config-change", signal.SIGTERM, delay_s=d) for d in (0.0, 0.3)]
-    t += [SignalTrial("shutdown", s) for s in (signal.SIGINT, signal.SIGTERM)]
-    t += [SignalTrial("warm-up", s, cold=True, delay_s=d) for s, d in
-          ((signal.SIGTERM, 2.0), (signal.SIGINT, 5.0), (signal.SIGTERM, 15.0), (signal.SIGHUP, 1.0))]
-    t += [SignalTrial("quiet-warm-up", signal.SIGTERM, cold=True, delay_s=5.0)]
+    """>= 20 distinct moments over the service's life (warm and cold numba cache), the three stop
+    signals in turn, and a second signal during shutdown."""
+    moments = [("import", 0.0), ("import", 0.5), ("import", 1.0),
+               ("warm-up", 0.0), ("warm-up", 0.3), ("warm-up", 1.0), ("quiet-warm-up", 0.5),
+               ("first-stack", 0.0), ("first-stack", 0.1),
+               ("steady", 0.0), ("steady", 0.5), ("steady", 1.0), ("steady", 2.0),
+               ("config-change", 0.0), ("config-change", 0.1), ("config-change", 0.3), ("config-change", 1.0),
+               ("shutdown", 0.0)]
+    cold = [("warm-up", 1.0), ("warm-up", 2.0), ("warm-up", 5.0), ("warm-up", 10.0), ("warm-up", 15.0),
+            ("quiet-warm-up", 5.0)]
+    sigs = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+    t = [SignalTrial(p, sigs[i % 3], delay_s=d) for i, (p, d) in enumerate(moments)]
+    t += [SignalTrial(p, sigs[(i + 1) % 3], cold=True, delay_s=d) for i, (p, d) in enumerate(cold)]
+    t += [SignalTrial("shutdown", signal.SIGINT), SignalTrial("steady", signal.SIGTERM, delay_s=3.0)]
     return t
 
 
@@ -269,7 +273,7 @@ def sigkill_trial(workdir: Path) -> dict[str, Any]:
             "output": (r.stdout + r.stderr)[-800:]}
 
 
-def full_disk_trial(workdir: Path, limit_bytes: int = 1_500_000) -> dict[str, Any]:
+def full_disk_trial(workdir: Path, limit_bytes: int = 1_500_000, stacks: int = 40) -> dict[str, Any]:
     """``edge run --record`` with the file size limited (RLIMIT_FSIZE, EFBIG like a full disk)."""
     import resource
 
@@ -285,7 +289,7 @@ def full_disk_trial(workdir: Path, limit_bytes: int = 1_500_000) -> dict[str, An
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
 
     proc = subprocess.Popen([sys.executable, "-m", "edge.cli", "run", "--profile", str(small), "--record", str(out),
-                             "--stacks", "40", "--no-zenoh"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                             "--stacks", str(stacks), "--no-zenoh", "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                             text=True, env=env_for(), cwd=str(workdir), preexec_fn=limit)
     text, _ = proc.communicate(timeout=900)
     rec = check_recording(out)
@@ -296,7 +300,7 @@ def full_disk_trial(workdir: Path, limit_bytes: int = 1_500_000) -> dict[str, An
            "state_stopped": "state stopped" in text, "error_named": "File too large" in text,
            "size": out.stat().st_size if out.exists() else 0, "output_tail": text[-1500:]}
     res["ok"] = (rec["readable"] and written == rec["raw"] and not res["traceback"] and res["state_stopped"]
-                 and res["error_named"] and res["stacks_decoded"] == 40 and res["size"] <= limit_bytes)
+                 and res["error_named"] and res["stacks_decoded"] == stacks and res["size"] <= limit_bytes)
     return res
 
 
@@ -351,23 +355,37 @@ def startup_error_ok(r: subprocess.CompletedProcess, expect: str | None) -> bool
 
 def rows(full: bool) -> list[dict[str, Any]]:
     """Rows of tools/fault_report.py: fault | trials | outcomes | target | met."""
-    work = Path(tempfile.mkdtemp(prefix="edge-faults-"))
+    import shutil
+
+    work = Path(tempfile.mkdtemp(prefix="edge-faults-lifecycle-"))
+    try:
+        return _rows(full, work)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _rows(full: bool, work: Path) -> list[dict[str, Any]]:
     out: list[dict[str, Any]] = []
     trials = full_trials() if full else CI_TRIALS
     results = [run_signal_trial(t, work / f"sig{i}") for i, t in enumerate(trials)]
     n_cold = sum(t.cold for t in trials)
-    bad_rc = [r for r in results if r["rc"] != 0 and not (r["trial"].endswith("at import") and r["ok"])]
+    bad_rc = [r for r in results if r["rc"] != 0 and not r["early"]]
+    early = sum(r["early"] for r in results)
+    failed = [r["trial"] for r in results if not r["ok"]]
     unreadable = sum(r["unreadable"] for r in results)
     missing = sum(r["frames_missing"] for r in results)
     slow = max(r["exit_s"] for r in results)
-    out.append({"fault": f"signals over the service's life ({len({t.point for t in trials})} points, "
-                         f"SIGINT/SIGTERM/SIGHUP, {n_cold} with a cold numba cache)",
+    moments = len({(t.point, t.delay_s, t.cold) for t in trials})
+    out.append({"fault": f"signals at {moments} moments of the service's life (import, warm-up, first stack, "
+                         f"steady, config change, shutdown; SIGINT/SIGTERM/SIGHUP; {n_cold} with a cold numba cache)",
                 "trials": len(results),
                 "outcomes": f"{unreadable} unreadable files, {missing} complete frames lost, "
-                            f"{len(bad_rc)} exit codes != 0, {sum(r['traceback'] for r in results)} tracebacks, "
-                            f"slowest exit {slow:.1f} s",
+                            f"{len(bad_rc)} unexpected exit codes (exit 0: {sum(r['rc'] == 0 for r in results)}, "
+                            f"130/143 before the handlers, nothing opened: {early}), "
+                            f"{sum(r['traceback'] for r in results)} tracebacks, slowest exit {slow:.1f} s"
+                            + (f"; failed: {', '.join(failed)}" if failed else ""),
                 "target": f"0 / 0 / 0 / 0, exit < {EXIT_BOUND_S:g} s",
-                "met": unreadable == 0 and missing == 0 and not bad_rc and slow < EXIT_BOUND_S
+                "met": unreadable == 0 and missing == 0 and not bad_rc and slow < EXIT_BOUND_S and not failed
                 and not any(r["traceback"] for r in results)})
     k = sigkill_trial(work / "kill")
     out.append({"fault": "SIGKILL at steady state, then edge replay --recover", "trials": 1,

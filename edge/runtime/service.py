@@ -106,6 +106,10 @@ class Service:
         self.warm_variants = (pipeline_factory is make_pipeline) if warm_variants is None else bool(warm_variants)
         self.warm_up_report = WarmUpReport()
         self._variant_labels: set[str] = set()
+        if self.warm_variants:
+            from .warmup import switchable_variants
+
+            self._variant_labels = {label for label, _ in switchable_variants(profile)}
         self.log = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
         self.fault = ""              # why the service stopped itself (sensor failure, persistent decode errors)
         self.warnings: list[str] = []
@@ -168,14 +172,12 @@ class Service:
         """Compile the decoder (and its switchable variants) in a helper thread; return True when
         done, False when `stop` was called first (the helper is abandoned: it is a daemon thread
         and capture never starts).  Idempotent; `run` calls it if nobody did."""
-        from .warmup import switchable_variants, warm_up_all
+        from .warmup import warm_up_all
 
         if self.warm_up_report.done:
             return True
         if self._stop.is_set():
             return False
-        if self.warm_variants:
-            self._variant_labels = {label for label, _ in switchable_variants(self.profile)}
         errors: list[BaseException] = []
 
         def work() -> None:

@@ -72,6 +72,10 @@ class WarmUpReport:
     def refusal(self, labels: list[str], base_labels: set[str]) -> str:
         """Why a change needing ``labels`` cannot be applied yet ('' = it can)."""
         for label in labels:
+            if label.startswith("decoder.method=") and label not in base_labels:
+                offered = ", ".join(x.split("=", 1)[1] for x in sorted(base_labels) if x.startswith("decoder.method="))
+                return (f"{label} does not fit this profile's pipeline"
+                        + (f" (it can switch to: {offered})" if offered else " (its method is fixed)"))
             if label in self.failed:
                 return f"{label} is unavailable: its kernels failed to compile ({self.failed[label]})"
             if label not in self.seconds and label in base_labels:

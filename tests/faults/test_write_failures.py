@@ -108,6 +108,6 @@ def test_failure_at_finish_still_finalises(tmp_path, full_disk):
 def test_file_size_limit_in_a_real_edge_run(tmp_path):
     """`edge run --record` with RLIMIT_FSIZE (EFBIG, like a full disk): keeps decoding, one summary,
     the recording finalised, honest counts, no traceback."""
-    r = F.full_disk_trial(tmp_path, limit_bytes=1_500_000)
+    r = F.full_disk_trial(tmp_path, limit_bytes=600_000, stacks=12)
     assert r["ok"], {k: v for k, v in r.items() if k != "output_tail"} | {"tail": r["output_tail"]}
     assert r["rc"] == 1  # the recording failed: a supervisor sees it
