@@ -227,7 +227,9 @@ def _config_change(port: int, delay_s: float) -> None:
 
 #: the CI subset (tests/faults): a few points, warm cache
 CI_TRIALS = [
-    SignalTrial("import", signal.SIGINT),
+    # +0.5 s: inside edge's own imports (before that, Python itself is still starting up and a
+    # Ctrl-C is its own KeyboardInterrupt traceback, which no code of ours can intercept)
+    SignalTrial("import", signal.SIGINT, delay_s=0.5),
     SignalTrial("warm-up", signal.SIGTERM),
     SignalTrial("shutdown", signal.SIGTERM),
     SignalTrial("steady", signal.SIGHUP),
@@ -334,6 +336,7 @@ def startup_error_cases(tmp: Path) -> list[tuple[str, list[str], str]]:
         ("port taken", base + ["--listen", f"tcp/127.0.0.1:{HELD_PORT[0]}"], "already in use"),
         ("--record is a directory", base + ["--no-zenoh", "--record", str(tmp)], "is a directory"),
         ("--record in a missing folder", base + ["--no-zenoh", "--record", str(tmp / "nope" / "a.mcap")], "does not exist"),
+        ("--record in a read-only folder", base + ["--no-zenoh", "--record", "/proc/sys/edge-test.mcap"], "not writable"),
         ("--record /dev/full", base + ["--no-zenoh", "--record", "/dev/full", "--overwrite"], "not a regular file"),
         ("--record name too long", base + ["--no-zenoh", "--record", str(tmp / ("x" * 300 + ".mcap"))], "longer than"),
         ("--record existing file", base + ["--no-zenoh", "--record", str(existing)], "already exists"),

@@ -39,7 +39,7 @@ def _cases(tmp_path_factory):
     return F.startup_error_cases(tmp_path_factory.mktemp("startup"))
 
 
-@pytest.mark.parametrize("index", range(11))
+@pytest.mark.parametrize("index", range(12))
 def test_startup_error_is_one_line_exit_2(index, tmp_path_factory, held_port, capsys):
     """Before the fix: zenoh.ZError / RuntimeError / OSError tracebacks (exit 1), a hang with --sensor oak."""
     cases = _cases(tmp_path_factory)
@@ -49,7 +49,7 @@ def test_startup_error_is_one_line_exit_2(index, tmp_path_factory, held_port, ca
 
 
 def test_startup_case_list_is_complete(tmp_path_factory):
-    assert len(_cases(tmp_path_factory)) == 11
+    assert len(_cases(tmp_path_factory)) == 12
 
 
 def test_failed_startup_leaves_an_existing_recording_untouched(tmp_path, held_port, capsys):
