@@ -28,15 +28,18 @@ def register(subparsers: Any) -> None:
     p.add_argument("--replay", metavar="FILE", help="recording for --sensor replay")
     p.add_argument("--record", metavar="OUT.mcap",
                    help="record raw frames, depth and confidence to MCAP. An existing file is refused unless "
-                        "--overwrite; the folder must exist; the file is created only after zenoh and the sensor "
-                        "opened (a failed start-up leaves an existing file untouched)")
+                        "--overwrite; the folder must exist; the file is created only once warm-up is done and "
+                        "the sensor started (a failed start-up, or a stop before capture, leaves an existing file "
+                        "untouched and creates none)")
     p.add_argument("--overwrite", action="store_true", help="let --record replace an existing recording")
     p.add_argument("--record-max-mb", type=float, metavar="MB",
-                   help="rotate: start OUT-0001.mcap, OUT-0002.mcap... when a file reaches MB megabytes "
-                        "(at a stack boundary; every file is finalised and replays on its own)")
+                   help="rotate: write OUT-<UTC start>-0000.mcap, -0001.mcap... and start the next file when "
+                        "one reaches MB megabytes (at a stack boundary; every file is finalised and replays on its "
+                        "own; a restart starts a new series, never overwriting)")
     p.add_argument("--record-max-seconds", type=float, metavar="S", help="rotate when a file is S seconds old")
     p.add_argument("--record-keep", type=int, default=0, metavar="N",
-                   help="with rotation: keep only the newest N files, deleting older ones (default 0: keep all)")
+                   help="with rotation: keep only the newest N rotated files of OUT (earlier series included), "
+                        "deleting older ones, so a long run never fills the disk (default 0: keep all)")
     stop = p.add_mutually_exclusive_group()
     stop.add_argument("--stacks", type=int, metavar="N", help="stop after N depth maps")
     stop.add_argument("--seconds", type=float, metavar="S", help="stop after S seconds")
