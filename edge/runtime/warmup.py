@@ -13,7 +13,9 @@ service warms up, before its sensor starts:
 With a warm numba cache this is a second or two; with an empty cache (first start on a device)
 it is minutes on a slow 2-core host, which is why the service only reports ``READY=1`` to systemd
 after it.  A variant whose warm-up fails is not offered: `Service.update_config` refuses a switch
-to it with the reason (see `WarmUpReport.refusal`).
+to it with the reason, and a method that does not fit the pipeline (see `WarmUpReport.refusal`).
+An update accepted before or during warm-up is applied at the first stack, i.e. after every
+variant compiled.
 """
 
 from __future__ import annotations
@@ -78,8 +80,7 @@ class WarmUpReport:
                         + (f" (it can switch to: {offered})" if offered else " (its method is fixed)"))
             if label in self.failed:
                 return f"{label} is unavailable: its kernels failed to compile ({self.failed[label]})"
-            if label not in self.seconds and label in base_labels:
-                return f"{label} is not ready: its kernels are still compiling; retry when warm-up is done"
+        # a variant not warmed yet is fine: warm-up finishes before the first stack is decoded
         return ""
 
 

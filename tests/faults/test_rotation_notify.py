@@ -211,7 +211,7 @@ class NoEdc(NumpyPipeline):
         return column, confidence, int(self.profile.edc.rounds), ()
 
 
-def test_switch_refused_until_its_kernels_are_warm_and_failed_variants_refused():
+def test_switch_to_a_variant_that_failed_to_compile_or_does_not_fit_is_refused():
     from edge.runtime.service import ConfigRejected, Service
     from edge.sensors.sim import SimSensor
 
@@ -224,8 +224,6 @@ def test_switch_refused_until_its_kernels_are_warm_and_failed_variants_refused()
             return super().decode(codes, white, black)
 
     service = Service(profile, SimSensor(profile, max_speed=True), pipeline_factory=HardBreaks, warm_variants=True)
-    with pytest.raises(ConfigRejected, match="still compiling"):  # before warm-up ran
-        service.update_config({"decoder": {"method": "list"}})
     assert service.warm_up()
     assert set(service.warm_up_report.seconds) >= {"profile", "decoder.method=list", "decoder.method=median", "edc"}
     with pytest.raises(ConfigRejected, match="hard is unavailable.*kernel compile failed"):
