@@ -379,8 +379,10 @@ def _rows(full: bool, work: Path) -> list[dict[str, Any]]:
     missing = sum(r["frames_missing"] for r in results)
     slow = max(r["exit_s"] for r in results)
     moments = len({(t.point, t.delay_s, t.cold) for t in trials})
-    out.append({"fault": f"signals at {moments} moments of the service's life (import, warm-up, first stack, "
-                         f"steady, config change, shutdown; SIGINT/SIGTERM/SIGHUP; {n_cold} with a cold numba cache)",
+    points = ", ".join(dict.fromkeys(t.point for t in trials))
+    sigs = "/".join(dict.fromkeys(signal.Signals(t.sig).name for t in trials))
+    out.append({"fault": f"signals at {moments} moments of the service's life ({points}; {sigs}; "
+                         f"{n_cold} with a cold numba cache)",
                 "trials": len(results),
                 "outcomes": f"{unreadable} unreadable files, {missing} complete frames lost, "
                             f"{len(bad_rc)} unexpected exit codes (exit 0: {sum(r['rc'] == 0 for r in results)}, "
