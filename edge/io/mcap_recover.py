@@ -63,8 +63,11 @@ def recover(path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
             chunk_size: int = 4 * 1024 * 1024) -> RecoveryReport:
     """Copy the readable part of ``path`` into a finalised MCAP at ``out_path``; see the module doc."""
     path, out_path = os.fspath(path), os.fspath(out_path)
-    if os.path.abspath(path) == os.path.abspath(out_path):
-        raise ValueError(f"expected an output path different from the input, got {out_path!r} for both")
+    if os.path.abspath(path) == os.path.abspath(out_path) or (
+            os.path.exists(out_path) and os.path.exists(path) and os.path.samefile(path, out_path)):
+        # also a symlink or hard link to the input: writing it would truncate the input
+        raise ValueError(f"expected an output path different from the input, got {out_path!r}, "
+                         f"which is {path!r} itself (same file); nothing was written")
     if os.path.isdir(path):
         raise RecordingError(f"{path}: is a directory, expected an MCAP recording file")
     if os.path.isdir(out_path):

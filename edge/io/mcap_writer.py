@@ -25,6 +25,7 @@ event slices of `edge.runtime.event_record`) go through the public `Recorder.reg
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import threading
@@ -57,11 +58,65 @@ from .mcap_format import (
     topics,
 )
 
-__all__ = ["Recorder", "COMPRESSION", "MESSAGE_ENCODINGS"]
+__all__ = ["Recorder", "RecordingStopped", "COMPRESSION", "MESSAGE_ENCODINGS"]
 
 COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 #: message encoding -> schema encoding of the channels a Recorder writes
 MESSAGE_ENCODINGS = {"protobuf": "protobuf", "json": "jsonschema"}
+
+
+class RecordingStopped(OSError):
+    """A write to a `Recorder` whose file already failed (disk full, I/O error); the message says why."""
+
+
+class _TrackedFile:
+    """The recording's file object: remembers the offset where the last successful ``flush`` ended
+    (every Recorder write ends with one, so it is the end of the last complete record) and the
+    first OSError (after which nothing more is written)."""
+
+    def __init__(self, f: Any) -> None:
+        self._f = f
+        self.good = 0
+        self.error: OSError | None = None
+
+    def _fail(self, exc: OSError) -> None:
+        if self.error is None:
+            self.error = exc
+
+    def write(self, data: Any) -> int:
+        if self.error is not None:
+            raise RecordingStopped(f"recording stopped after a write error: {self.error}")
+        try:
+            return self._f.write(data)
+        except OSError as exc:
+            self._fail(exc)
+            raise
+
+    def flush(self) -> None:
+        if self.error is not None:
+            raise RecordingStopped(f"recording stopped after a write error: {self.error}")
+        try:
+            self._f.flush()
+        except OSError as exc:
+            self._fail(exc)
+            raise
+        self.good = self._f.tell()
+
+    def tell(self) -> int:
+        return self._f.tell()
+
+    def fileno(self) -> int:
+        return self._f.fileno()
+
+    def close(self) -> None:
+        try:
+            self._f.close()
+        except OSError as exc:  # a failed file: the pending buffer cannot be written either
+            self._fail(exc)
+            try:
+                self._f.close()
+            except OSError:
+                pass
 
 
 class Recorder:
@@ -70,6 +125,11 @@ class Recorder:
     Parameters: ``path`` (created / truncated), ``profile`` (recorded as metadata + attachment;
     gives the device name, chunk size and compression), ``sensor_metadata`` (str -> str, e.g.
     serial, firmware, backend), ``chunk_size`` / ``compression`` override the profile.
+
+    Write failures (ENOSPC, EFBIG, EIO): the failing write raises OSError and every later write
+    raises `RecordingStopped`; `finish` then cuts the file back to the end of the last complete
+    write and finalises it in place (`edge.io.mcap_finalize`), so what reached the disk stays a
+    valid recording (``finalize_report`` says what it holds; ``error`` the first failure).
     """
 
     def __init__(self, path: str | os.PathLike[str], profile: Profile, *,
@@ -86,7 +146,8 @@ class Recorder:
         self.bytes_in = 0
         self._lock = threading.Lock()
         self._finished = False
-        self._file = open(self.path, "wb")
+        self.finalize_report = None
+        self._file = _TrackedFile(open(self.path, "wb"))
         try:
             self._writer = Writer(self._file, chunk_size=chunk_size or profile.recording.chunk_size,
                                   compression=COMPRESSION[compression], enable_crcs=True,
@@ -156,6 +217,8 @@ class Recorder:
         self.bytes_in += len(data)
 
     def _check_open(self) -> None:
+        if self._file.error is not None:
+            raise RecordingStopped(f"recording {self.path} stopped after a write error: {self._file.error}")
         if self._finished:
             raise ValueError(f"recorder for {self.path} is finished; expected writes before finish()")
 
@@ -289,16 +352,43 @@ class Recorder:
     def finished(self) -> bool:
         return self._finished
 
+    @property
+    def error(self) -> str:
+        """The first write failure ('' while the file is fine)."""
+        e = self._file.error
+        if e is None:
+            return ""
+        if e.errno:
+            return f"{e.strerror or os.strerror(e.errno)} ({errno.errorcode.get(e.errno, e.errno)})"
+        return str(e)
+
+    @property
+    def bytes_written(self) -> int:
+        """Bytes known to be on disk (end of the last complete write)."""
+        return self._file.good
+
     def finish(self) -> None:
-        """Write the last chunk, summary, footer and close the file. Idempotent."""
+        """Write the last chunk, summary, footer and close the file. Idempotent.
+
+        After a write failure the file is cut back and finalised in place instead (see the class
+        docstring); OSError only if even that fails (the cut file is left for ``edge replay --recover``).
+        """
+        from .mcap_finalize import finalize_in_place
+
         with self._lock:
             if self._finished:
                 return
             self._finished = True
             try:
-                self._writer.finish()
+                if self._file.error is None:
+                    self._writer.finish()
+                    self._file.flush()
+            except OSError:
+                pass  # remembered by the file object; finalised below
             finally:
                 self._file.close()
+            if self._file.error is not None:
+                self.finalize_report = finalize_in_place(self.path, self._file.good)
 
     def __enter__(self) -> "Recorder":
         return self

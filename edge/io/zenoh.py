@@ -37,11 +37,11 @@ Header (the zenoh *attachment* of every depth and confidence sample): UTF-8 JSON
 
 Five-line subscriber (see also `DepthSubscriber`)::
 
-    import json, zenoh, numpy as np
-    conf = zenoh.Config(); conf.insert_json5("connect/endpoints", '["tcp/127.0.0.1:7451"]')
-    s = zenoh.open(conf)
-    def on(sample): h = json.loads(sample.attachment.to_bytes()); d = np.frombuffer(sample.payload.to_bytes(), "<u2").reshape(h["height"], h["width"]); print(h["sequence"], d.max())
-    sub = s.declare_subscriber("sl/sim-dlp/depth", on)
+    import json, signal, zenoh, numpy as np
+    conf = zenoh.Config(); conf.insert_json5("connect/endpoints", '["tcp/127.0.0.1:7451"]'); conf.insert_json5("scouting/multicast/enabled", "false")
+    def on(sample): h = json.loads(sample.attachment.to_bytes()); d = np.frombuffer(sample.payload.to_bytes(), "<u2").reshape(h["height"], h["width"]); print(h["sequence"], d.max(), flush=True)
+    stop = {signal.SIGINT, signal.SIGTERM}; signal.pthread_sigmask(signal.SIG_BLOCK, stop)
+    with zenoh.open(conf) as s, s.declare_subscriber("sl/sim-dlp/depth", on): signal.sigwait(stop)
 """
 
 from __future__ import annotations

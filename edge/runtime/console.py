@@ -72,7 +72,7 @@ def summary_lines(status: dict[str, Any], console: ConsoleSink | None = None) ->
         f"{status['out_of_order']})")
     if status.get("recorder"):
         r = status["recorder"]
-        lines.append("recording: " + ", ".join(f"{k} {v}" for k, v in r.items()))
+        lines.append("recording: " + ", ".join(f"{k} {v}" for k, v in r.items() if v != ""))
     if status.get("errors"):
         lines.append(f"last error: {status['errors']}")
     return lines

@@ -17,6 +17,7 @@ zenoh publisher and the console printer are sinks).  The recorder has ``on_frame
 from __future__ import annotations
 
 import dataclasses
+import sys
 import threading
 import time
 from collections import deque
@@ -27,12 +28,15 @@ import numpy as np
 from ..sensors.base import EndOfStream, Frame, MaskedCapture, Sensor
 from .assembly import StackAssembler
 from .pipeline import DepthResult, make_pipeline
+from .sdnotify import Notifier
 from .stack_queue import Closed, LatestQueue
 
 #: Profile tables that may change while the service runs (applied between stacks).
 LIVE_TABLES = ("decoder", "edc", "geometry", "oak")
 #: The service stops when this many stacks in a row fail to decode (a persistent fault).
 MAX_CONSECUTIVE_DECODE_ERRORS = 10
+#: Stacks decoded after a live config change before its cost is checked against the stack budget.
+BUDGET_CHECK_STACKS = 3
 
 
 class ConfigRejected(ValueError):
@@ -47,6 +51,7 @@ class ServiceCounters:
     sink_errors: int = 0
     config_updates: int = 0
     config_rejected: int = 0
+    stacks_dropped_at_stop: int = 0
     last_error: str = ""
 
 
@@ -56,11 +61,19 @@ class Service:
     profile: an `edge.profiles.Profile`; sensor: a started-on-demand `Sensor`; sinks: result
     sinks; recorder: optional recorder; queue_capacity: stacks waiting for the decoder before
     the oldest is dropped; pipeline_factory: builds the per-stack chain (tests inject slow ones).
+    notifier: systemd notifications (`edge.runtime.sdnotify.Notifier`, default from the
+    environment; a no-op outside systemd).  warm_variants: also compile every switchable decoder
+    variant before capture (`edge.runtime.warmup`; default: only with the standard pipeline
+    factory).  log: one-line warnings (default: stderr).
     """
 
     def __init__(self, profile, sensor: Sensor, *, sinks: Iterable[Any] = (), recorder: Any = None,
                  queue_capacity: int = 1,
-                 pipeline_factory: Callable[[Any], Any] = make_pipeline) -> None:
+                 pipeline_factory: Callable[[Any], Any] = make_pipeline,
+                 notifier: Notifier | None = None, warm_variants: bool | None = None,
+                 log: Callable[[str], None] | None = None) -> None:
+        from .warmup import WarmUpReport
+
         self.profile = profile
         self.sensor = sensor
         self.sinks = list(sinks)
@@ -92,6 +105,24 @@ class Service:
         self.geometry_source = "profile"  # or "device calibration" (see _use_device_geometry)
         self._last_exposure_us: float | None = None
         self.last_config_change: dict[str, Any] | None = None  # {"time_ns", "keys"} of the last accepted update
+        self.notifier = notifier if notifier is not None else Notifier()
+        self.warm_variants = (pipeline_factory is make_pipeline) if warm_variants is None else bool(warm_variants)
+        self.warm_up_report = WarmUpReport()
+        self._variant_labels: set[str] = set()
+        if self.warm_variants:
+            from .warmup import switchable_variants
+
+            self._variant_labels = {label for label, _ in switchable_variants(profile)}
+        self.log = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
+        self.fault = ""              # why the service stopped itself (sensor failure, persistent decode errors)
+        self.warnings: list[str] = []
+        self.budget: dict[str, Any] = {}
+        self._change: dict[str, Any] | None = None   # the live change being measured against the budget
+        self._closed = False
+        self._ran = False
+        self._sensor_started = False
+        #: called by `run` after the sensor started, when ``recorder`` is None (``edge run --record``)
+        self.recorder_factory: Callable[[], Any] | None = None
 
     # -- control ------------------------------------------------------------------------------
     def stop(self) -> None:
@@ -118,6 +149,7 @@ class Service:
             if frozen:
                 raise ConfigRejected(
                     f"cannot change {', '.join(frozen)} while running (live tables: {', '.join(LIVE_TABLES)})")
+            self._check_warm(self.profile, new)
             if "oak" in {k.split(".")[0] for k in changed_keys(self.profile, new)}:
                 apply = getattr(self.sensor, "apply_settings", None)
                 if apply is None:
@@ -130,7 +162,7 @@ class Service:
             raise
         change = {"time_ns": time.time_ns(), "keys": changed}
         with self._lock:
-            self._pending_profile = (new, pipeline)
+            self._pending_profile = (new, pipeline, changed_keys(self.profile, new))
             self.profile = new
             self.counters.config_updates += 1
             self.last_config_change = change
@@ -146,6 +178,46 @@ class Service:
         """Count a config update rejected before it reached `update_config` (the zenoh layer)."""
         with self._lock:
             self.counters.config_rejected += 1
+    def _check_warm(self, old, new) -> None:
+        """ConfigRejected when ``new`` needs kernels that are not compiled (see `edge.runtime.warmup`)."""
+        if not self.warm_variants:
+            return
+        from .warmup import variant_label
+
+        reason = self.warm_up_report.refusal(variant_label(old, new), self._variant_labels)
+        if reason:
+            raise ConfigRejected(reason)
+
+    # -- warm-up ------------------------------------------------------------------------------
+    def warm_up(self) -> bool:
+        """Compile the decoder (and its switchable variants) in a helper thread; return True when
+        done, False when `stop` was called first (the helper is abandoned: it is a daemon thread
+        and capture never starts).  Idempotent; `run` calls it if nobody did."""
+        from .warmup import warm_up_all
+
+        if self.warm_up_report.done:
+            return True
+        if self._stop.is_set():
+            return False
+        errors: list[BaseException] = []
+
+        def work() -> None:
+            try:
+                warm_up_all(self.profile, self.pipeline_factory, self.pipeline, variants=self.warm_variants,
+                            report=self.warm_up_report, should_stop=self._stop.is_set)
+            except BaseException as exc:  # reported by the waiting thread
+                errors.append(exc)
+
+        t0 = time.monotonic()
+        thread = threading.Thread(target=work, name="edge-warmup", daemon=True)
+        thread.start()
+        while thread.is_alive() and not self._stop.is_set():
+            self.notifier.watchdog()  # alive while compiling (systemd's watchdog may already run)
+            thread.join(0.05)
+        self.warm_up_s = time.monotonic() - t0
+        if errors:
+            raise errors[0]
+        return self.warm_up_report.done and not self._stop.is_set()
 
     # -- threads ------------------------------------------------------------------------------
     def _capture_loop(self) -> None:
@@ -171,6 +243,7 @@ class Service:
                         break
         except Exception as exc:  # a broken sensor ends the run with the reason in status
             self.counters.last_error = f"sensor: {type(exc).__name__}: {exc}"
+            self.fault = self.counters.last_error
             self._stop.set()
         finally:
             self.assembler.flush(stopping=self._stop.is_set())
@@ -186,6 +259,10 @@ class Service:
         masked = self._masked_capture()
         failures = 0
         while True:
+            self.notifier.watchdog()
+            if self._stop.is_set():  # stopping: do not decode what is still queued (raw frames are recorded)
+                self.counters.stacks_dropped_at_stop += self.queue.discard()
+                break
             try:
                 stack = self.queue.get(0.1)
             except Closed:
@@ -196,6 +273,7 @@ class Service:
                 pending, self._pending_profile = self._pending_profile, None
             if pending is not None:
                 self.pipeline = pending[1]
+                self._change = {"keys": list(pending[2]), "decode_s": []}
             try:
                 result = self.pipeline.process(stack, masked)
             except Exception as exc:
@@ -204,14 +282,47 @@ class Service:
                 failures += 1
                 if failures >= MAX_CONSECUTIVE_DECODE_ERRORS:  # a persistent fault: stop, do not spin
                     self.counters.last_error += f" ({failures} stacks in a row failed; service stopped)"
+                    self.fault = self.counters.last_error
                     self._stop.set()
                 continue
             failures = 0
             self.counters.stacks_decoded += 1
+            self._check_budget(result.decode_s)
             self._deliver(result)
             if self._target_stacks is not None and self.counters.stacks_decoded >= self._target_stacks:
                 self._stop.set()
                 break
+
+    def stack_budget_s(self) -> float:
+        """Seconds between two stacks at the camera rate (frames per stack / camera fps)."""
+        fps = float(self.profile.camera.rate_hz)
+        return self.sensor.info.frames_per_stack / fps if fps > 0 else float("inf")
+
+    def _check_budget(self, decode_s: float) -> None:
+        """After a live change, measure `BUDGET_CHECK_STACKS` stacks; a change whose median decode
+        time exceeds the stack budget is kept (the operator asked for it) but reported: a warning
+        in the status (``budget``, ``warnings``) and on stderr."""
+        change = self._change
+        if change is None:
+            return
+        change["decode_s"].append(decode_s)
+        if len(change["decode_s"]) < BUDGET_CHECK_STACKS:
+            return
+        self._change = None
+        budget = self.stack_budget_s()
+        p50 = float(np.median(change["decode_s"]))
+        over = p50 > budget
+        self.budget = {"change": ", ".join(change["keys"]) or "(none)", "decode_ms_p50": round(p50 * 1e3, 3),
+                       "stack_budget_ms": round(budget * 1e3, 3), "over_budget": over}
+        if over:
+            warning = (f"config change {self.budget['change']}: decode takes {p50 * 1e3:.0f} ms per stack, over the "
+                       f"{budget * 1e3:.0f} ms stack budget ({self.sensor.info.frames_per_stack} frames at "
+                       f"{self.profile.camera.rate_hz:g} fps): stacks will be dropped (applied anyway; "
+                       f"revert it to keep real time)")
+            self.budget["warning"] = warning
+            self.warnings.append(warning)
+            del self.warnings[:-8]
+            self.log(f"edge run: warning: {warning}")
 
     def _deliver(self, result: DepthResult) -> None:
         if result.geometry is None:  # sinks back-project with the geometry that made this depth map
@@ -276,9 +387,17 @@ class Service:
             "config_updates": self.counters.config_updates,
             "config_rejected": self.counters.config_rejected,
             "last_config_change": self.last_config_change,
+            "stacks_dropped_at_stop": self.counters.stacks_dropped_at_stop,
+            "stack_budget_ms": round(self.stack_budget_s() * 1e3, 3),
+            "budget": dict(self.budget) or None,
+            "warnings": list(self.warnings),
+            "warm_up": {"seconds": {k: round(v, 3) for k, v in self.warm_up_report.seconds.items()},
+                        "failed": dict(self.warm_up_report.failed), "done": self.warm_up_report.done},
+            "stopping": self._stop.is_set(),
+            "fault": self.fault,
             "recorder": self.recorder.stats() if self.recorder is not None and hasattr(self.recorder, "stats") else None,
             "sensor_stats": self.sensor.stats() if callable(getattr(self.sensor, "stats", None)) else None,
-            "errors": self.counters.last_error,
+            "errors": self.counters.last_error or self._recorder_error(),
             **{k: v for k, v in self.pipeline_stats.items() if k not in ("stacks_decoded",)},
             **self._camera_status(),
         }
@@ -334,6 +453,9 @@ class Service:
         self.pipeline = self.pipeline_factory(new)
         self.profile = new
         self.geometry_source = "device calibration"
+    def _recorder_error(self) -> str:
+        err = getattr(self.recorder, "error", "") if self.recorder is not None else ""
+        return f"recording: {err}" if err else ""
 
     def _emit_status(self) -> None:
         status = self.status()
@@ -358,46 +480,65 @@ class Service:
         if seconds is not None and not seconds > 0:
             raise ValueError(f"--seconds must be > 0, got {seconds}")
         self._target_stacks = stacks
-        self._started = time.monotonic()
-        deadline = None if seconds is None else self._started + seconds
-        period = float(self.profile.zenoh.status_period_s)
-        warm_up = getattr(self.pipeline, "warm_up", None)
-        if warm_up is not None:  # compile the decoder before frames arrive: no stale stacks at start
-            self.warm_up_s = warm_up()
-        self.sensor.start()
+        self._ran = True
         try:
-            self._use_device_geometry()
-            self._threads = [
-                threading.Thread(target=self._capture_loop, name="edge-capture", daemon=True),
-                threading.Thread(target=self._decode_loop, name="edge-decode", daemon=True),
-            ]
-            for t in self._threads:
-                t.start()
-            next_status = time.monotonic() + period
-            decode_thread = self._threads[1]
-            while decode_thread.is_alive():
-                now = time.monotonic()
-                if deadline is not None and now >= deadline:
-                    self._stop.set()
-                if self._stop.is_set():
-                    break
-                if now >= next_status:
-                    self._emit_status()
-                    next_status = now + period
-                if on_tick is not None:
-                    on_tick(self)
-                self._stop.wait(min(0.05, max(0.0, next_status - now)))
+            # compile the decoder before frames arrive: no stale stacks at start; a stop during
+            # warm-up ends the run at once, before the sensor starts
+            if self.warm_up():
+                self._run_threads(seconds, on_tick)
         finally:
             self._shutdown()
         return self.status()
 
+    def _run_threads(self, seconds: float | None, on_tick: Callable[["Service"], None] | None) -> None:
+        self._started = time.monotonic()
+        deadline = None if seconds is None else self._started + seconds
+        period = float(self.profile.zenoh.status_period_s)
+        self._sensor_started = True  # stop() it even if start() fails half-way
+        self.sensor.start()
+        self._use_device_geometry()  # a sensor's own calibration replaces the profile's geometry
+        if self.recorder is None and self.recorder_factory is not None:
+            self.recorder = self.recorder_factory()  # the file exists only once capture can start
+        self._threads = [
+            threading.Thread(target=self._capture_loop, name="edge-capture", daemon=True),
+            threading.Thread(target=self._decode_loop, name="edge-decode", daemon=True),
+        ]
+        for t in self._threads:
+            t.start()
+        self.notifier.ready(f"capturing: profile {self.profile.name}, sensor {self.sensor.info.name}")
+        next_status = time.monotonic() + period
+        decode_thread = self._threads[1]
+        while decode_thread.is_alive():
+            now = time.monotonic()
+            if deadline is not None and now >= deadline:
+                self._stop.set()
+            if self._stop.is_set():
+                break
+            if now >= next_status:
+                self._emit_status()
+                next_status = now + period
+            if on_tick is not None:
+                on_tick(self)
+            self._stop.wait(min(0.05, max(0.0, next_status - now)))
+
+    def close(self) -> None:
+        """Release everything (sinks, recorder) without running; idempotent.  `run` calls it at
+        the end, so call it only for a service that never ran or whose `run` raised early."""
+        if not self._closed:
+            self._shutdown()
+
     def _shutdown(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
         self._stop.set()
+        self.notifier.stopping("stopping: finishing the recording")
         capture, decode = self._threads if self._threads else (None, None)
         if capture is not None:
             capture.join(timeout=10)
         try:
-            self.sensor.stop()
+            if self._sensor_started:
+                self.sensor.stop()
         except Exception as exc:
             self.counters.last_error = f"sensor stop: {type(exc).__name__}: {exc}"
         self.queue.close()
@@ -410,4 +551,8 @@ class Service:
             except Exception as exc:
                 self.counters.last_error = f"sink close: {type(exc).__name__}: {exc}"
         if self.recorder is not None:
-            self.recorder.close()
+            try:
+                self.recorder.close()
+            except Exception as exc:  # report, never lose the summary
+                self.counters.last_error = f"recording close: {type(exc).__name__}: {exc}"
+        self.notifier.close()

@@ -56,6 +56,13 @@ class LatestQueue(Generic[T]):
                 raise Closed("queue is closed")
             return None
 
+    def discard(self) -> int:
+        """Drop everything queued (a stopping service does not decode it); returns how many."""
+        with self._cond:
+            n = len(self._items)
+            self._items.clear()
+            return n
+
     def close(self) -> None:
         """No more puts; getters drain what is left, then get `Closed`."""
         with self._cond:

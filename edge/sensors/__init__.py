@@ -57,6 +57,8 @@ def open_sensor(profile, backend: str | None = None, *, replay_path: str | None 
     if backend == "oak":
         from .oak import OakSensor
 
+        if options.get("pipeline") is None:
+            require_oak_device()
         return OakSensor(profile, **options)
     if backend == "event":
         from .event import EventSimSensor
@@ -66,5 +68,21 @@ def open_sensor(profile, backend: str | None = None, *, replay_path: str | None 
     raise ValueError(f"unknown sensor backend {backend!r}; expected one of {', '.join(BACKENDS)}")
 
 
-__all__ = ["BACKENDS", "BLACK", "WHITE", "EndOfStream", "EventSlice", "Frame", "layout_schedule", "slot_schedule", "MaskedCapture", "ProjectorFrame", "Sensor",
+def require_oak_device() -> None:
+    """ValueError (one line) when depthai sees no OAK device, before any pipeline is built (a
+    device-less start used to fail deep inside ``start()`` after warm-up, with a traceback)."""
+    try:
+        import depthai as dai
+    except ImportError as exc:
+        raise ValueError(f"sensor oak: depthai is not installed ({exc})") from None
+    try:
+        devices = dai.Device.getAllAvailableDevices()
+    except Exception as exc:  # depthai's own failure to enumerate: still one line
+        raise ValueError(f"sensor oak: cannot list OAK devices ({type(exc).__name__}: {exc})") from None
+    if not devices:
+        raise ValueError("sensor oak: no OAK device found (depthai lists none): plug one in (in a container, "
+                         "pass /dev/bus/usb through) or choose another sensor, e.g. --sensor sim")
+
+
+__all__ = ["BACKENDS", "require_oak_device", "BLACK", "WHITE", "EndOfStream", "EventSlice", "Frame", "layout_schedule", "slot_schedule", "MaskedCapture", "ProjectorFrame", "Sensor",
            "SensorInfo", "open_sensor", "parse_projector_frame", "projector_frame_id", "stack_schedule"]

@@ -1,0 +1,150 @@
+"""Compile the kernels of every decoder variant a running service may switch to, before capture.
+
+A live config update (``decoder.method``, ``edc.rounds``) builds a new pipeline; its numba kernels
+compile on first use, which stalled one stack for 5.9 s (``hard``) and dropped 20 stacks.  So the
+service warms up, before its sensor starts:
+
+1. the profile's own pipeline (`DepthPipeline.warm_up`: a small synthetic stack, 8 x 64 pixels);
+2. every *switchable variant* (`switchable_variants`): for a column-pattern profile each other
+   decoder method that fits the projector (soft, hard, list, median) and, when ``edc.rounds`` is 0,
+   the EDC stage (``edc.rounds = 1``, a synthetic stack through `process` with a synthetic masked
+   capture, so the check and masked re-decode kernels compile too).
+
+With a warm numba cache this is a second or two; with an empty cache (first start on a device)
+it is minutes on a slow 2-core host, which is why the service only reports ``READY=1`` to systemd
+after it.  A variant whose warm-up fails is not offered: `Service.update_config` refuses a switch
+to it with the reason, and a method that does not fit the pipeline (see `WarmUpReport.refusal`).
+An update accepted before or during warm-up is applied at the first stack, i.e. after every
+variant compiled.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+#: decoder methods of the column-pattern pipeline (the others belong to dots / curtain profiles)
+COLUMN_METHODS = ("soft", "hard", "list", "median")
+
+
+def switchable_variants(profile) -> list[tuple[str, Any]]:
+    """[(label, profile)] the live config may switch ``profile`` to, other than itself.
+
+    Labels: ``"decoder.method=<m>"`` and ``"edc"``.  Only column-pattern profiles have variants
+    (the dots and curtain pipelines have one method each).
+    """
+    from edge.profiles import apply_update
+
+    from .pipeline import pipeline_kind
+
+    if pipeline_kind(profile) != "columns":
+        return []
+    out = [(f"decoder.method={m}", apply_update(profile, {"decoder": {"method": m}}, source="warm-up"))
+           for m in COLUMN_METHODS if m != profile.decoder.method]
+    if profile.edc.rounds == 0:
+        out.append(("edc", apply_update(profile, {"edc": {"rounds": 1}}, source="warm-up")))
+    return out
+
+
+def variant_label(old, new) -> list[str]:
+    """Labels of `switchable_variants` that a change from ``old`` to ``new`` needs warmed."""
+    labels = []
+    if new.decoder.method != old.decoder.method:
+        labels.append(f"decoder.method={new.decoder.method}")
+    if new.edc.rounds > 0 and old.edc.rounds == 0:
+        labels.append("edc")
+    return labels
+
+
+@dataclass
+class WarmUpReport:
+    """Seconds per warmed item (``"profile"`` = the running pipeline) and failures (label -> reason)."""
+
+    seconds: dict[str, float] = field(default_factory=dict)
+    failed: dict[str, str] = field(default_factory=dict)
+    done: bool = False
+
+    @property
+    def total_s(self) -> float:
+        return float(sum(self.seconds.values()))
+
+    def refusal(self, labels: list[str], base_labels: set[str]) -> str:
+        """Why a change needing ``labels`` cannot be applied yet ('' = it can)."""
+        for label in labels:
+            if label.startswith("decoder.method=") and label not in base_labels:
+                offered = ", ".join(x.split("=", 1)[1] for x in sorted(base_labels) if x.startswith("decoder.method="))
+                return (f"{label} does not fit this profile's pipeline"
+                        + (f" (it can switch to: {offered})" if offered else " (its method is fixed)"))
+            if label in self.failed:
+                return f"{label} is unavailable: its kernels failed to compile ({self.failed[label]})"
+        # a variant not warmed yet is fine: warm-up finishes before the first stack is decoded
+        return ""
+
+
+def synthetic_stack(pipeline) -> tuple[Any, Callable[[int, int, np.ndarray], list[Any]]]:
+    """A small (8 x 64) complete stack for a `DepthPipeline` and a masked-capture function that
+    renders masked projector rows onto it (camera pixel x sees projector column x - d)."""
+    from ..sensors.base import Frame
+    from .assembly import Stack
+
+    p = pipeline.profile
+    dtype = np.uint8 if p.camera.bits == 8 else np.uint16
+    full = pipeline.full_scale
+    h, w = 8, 64
+    mid = (p.decoder.min_disparity + p.decoder.max_disparity) // 2
+    proj_col = np.clip(np.arange(w) - mid, 0, pipeline.columns * pipeline.stripe - 1)
+    code = pipeline.code
+    bits = code.codebook[proj_col // pipeline.stripe].T.astype(np.float64) / max(1, code.q - 1)  # (n, w)
+    images = [0.1 * full + 0.7 * full * np.broadcast_to(b, (h, w)) for b in bits]
+    images += [np.full((h, w), 0.8 * full), np.full((h, w), 0.1 * full)]
+    L = pipeline.source_length
+    frames = []
+    for i, pf in enumerate(pipeline.schedule):
+        img = images[min(i // L, len(images) - 1)]
+        frames.append(Frame(np.ascontiguousarray(img).astype(dtype), i, 1000 + i, 1000.0, int(pf), 0))
+    stack = Stack(0, tuple(frames), 0)
+
+    def masked(stack_id: int, edc_round: int, rows: np.ndarray) -> list[Any]:
+        rows = np.asarray(rows, dtype=np.float64)
+        cols = np.clip(proj_col, 0, rows.shape[1] - 1)
+        out = []
+        for j, row in enumerate(rows):
+            img = 0.1 * full + 0.7 * full * np.broadcast_to(row[cols] / max(1.0, row.max()), (h, w))
+            out.append(Frame(img.astype(dtype), 100 + j, 2000 + j, 1000.0, int(j), stack_id))
+        return out
+
+    return stack, masked
+
+
+def warm_pipeline(pipeline, *, edc: bool = False) -> float:
+    """Warm one pipeline up (its own ``warm_up``; with ``edc`` a synthetic `process` through the
+    EDC stage too).  Returns seconds."""
+    t0 = time.perf_counter()
+    warm = getattr(pipeline, "warm_up", None)
+    if warm is not None:
+        warm()
+    if edc and hasattr(pipeline, "code"):
+        stack, masked = synthetic_stack(pipeline)
+        pipeline.process(stack, masked)
+    return time.perf_counter() - t0
+
+
+def warm_up_all(profile, factory: Callable[[Any], Any], pipeline: Any, *, variants: bool = True,
+                report: WarmUpReport | None = None, should_stop: Callable[[], bool] = lambda: False) -> WarmUpReport:
+    """Warm ``pipeline`` (built from ``profile``) and, with ``variants``, every switchable variant
+    (built with ``factory``).  Stops early when ``should_stop()`` turns true.  Fills ``report``."""
+    report = report if report is not None else WarmUpReport()
+    report.seconds["profile"] = warm_pipeline(pipeline, edc=profile.edc.rounds > 0)
+    if variants:
+        for label, variant in switchable_variants(profile):
+            if should_stop():
+                return report
+            try:
+                report.seconds[label] = warm_pipeline(factory(variant), edc=variant.edc.rounds > 0)
+            except Exception as exc:  # a variant that cannot run is refused later, with this reason
+                report.failed[label] = f"{type(exc).__name__}: {exc}"
+    report.done = True
+    return report
