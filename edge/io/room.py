@@ -1,0 +1,199 @@
+"""Automatic code claim over zenoh: the members of a room find each other by liveliness tokens.
+
+Key (one liveliness token per member, no payload; everything is in the key)::
+
+    <prefix>/room/<room>/<device>/<code>/<zid>
+
+``device`` is the member's key-space name (its depth is on ``<prefix>/<device>/depth``), ``code`` the
+index of its source code in the room's family, ``zid`` its zenoh session id.  The claim rules are in
+`edge.runtime.room` (pure); this module applies them to the live view:
+
+* `RoomClaim.join`: subscribe to ``<prefix>/room/<room>/**`` (liveliness, with history), wait
+  ``settle_s`` for the view, claim (`resolve`), declare the token, wait ``settle_s`` again and
+  re-claim while the view shows a conflict this member loses (two members that start at the same
+  instant: the larger zid moves).  Raises `RoomFull` / `RoomNameTaken` (ValueError: exit 2 on the
+  CLI) naming the room and its members.
+* While running, every change of the view (a member joins, leaves, or a conflict appears) re-runs
+  the rules; a changed claim re-declares the token and calls ``on_change(me, members)`` (the service
+  applies it between stacks).  A member whose process dies loses its token when its session's
+  transport closes, so its code is free for the next claim.
+* `close` undeclares the token (the code is freed at once) and the subscriber.
+
+Every callback runs on a zenoh thread; the view and the claim are guarded by one lock and
+``on_change`` is called outside it.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Callable, Iterable
+
+import zenoh
+
+from edge.runtime.room import Member, RoomFull, RoomNameTaken, parse_token, resolve, room_selector, token_key
+
+__all__ = ["RoomClaim", "RoomFull", "RoomNameTaken", "room_members"]
+
+#: Rounds of re-claiming `join` tries before it gives up (each member moves at most N - 1 times).
+MAX_JOIN_ROUNDS = 32
+
+
+def room_members(session: zenoh.Session, prefix: str, room: str, *, timeout: float = 2.0) -> list[Member]:
+    """The claims present in ``room`` now (a liveliness query), sorted by code."""
+    out = []
+    for reply in session.liveliness().get(room_selector(prefix, room), timeout=timeout):
+        if reply.ok is not None:
+            m = parse_token(str(reply.ok.key_expr), prefix, room)
+            if m is not None:
+                out.append(m)
+    return sorted(set(out), key=lambda m: (m.code, m.device))
+
+
+class RoomClaim:
+    """This member's claim in a room (see module docstring).
+
+    session: an open zenoh session (not closed here); prefix / room: the key space; device: the
+    requested device name (``explicit``: from ``--device``, never renamed); capacity: codes in the
+    family; settle_s: how long to wait for tokens to propagate; on_change(me, members): called when
+    the claim or the membership changes after `join`; on_lost(error): called when a running member
+    loses its code and no code is free.
+    """
+
+    def __init__(self, session: zenoh.Session, *, prefix: str, room: str, device: str, capacity: int,
+                 explicit: bool = False, settle_s: float = 0.5,
+                 on_change: Callable[[Member, list[Member]], None] | None = None,
+                 on_lost: Callable[[Exception], None] | None = None) -> None:
+        self.session = session
+        self.prefix, self.room, self.base_device, self.explicit = prefix, room, device, bool(explicit)
+        self.capacity = int(capacity)
+        self.settle_s = float(settle_s)
+        self.on_change = on_change
+        self.on_lost = on_lost
+        self.zid = str(session.info.zid())
+        self._lock = threading.RLock()
+        self._notified: tuple | None = None
+        self._view: dict[str, Member] = {}
+        self._me: Member | None = None
+        self._token = None
+        self._joined = False
+        self._closed = False
+        self.claim_changes = 0
+        self._sub = session.liveliness().declare_subscriber(room_selector(prefix, room), self._on_token,
+                                                            history=True)
+
+    # -- view ---------------------------------------------------------------------------------
+    def _on_token(self, sample: zenoh.Sample) -> None:
+        key = str(sample.key_expr)
+        m = parse_token(key, self.prefix, self.room)
+        if m is None:
+            return
+        with self._lock:
+            if sample.kind == zenoh.SampleKind.DELETE:
+                self._view.pop(key, None)
+            else:
+                self._view[key] = m
+            running = self._joined and not self._closed
+        if running:
+            self._reclaim()
+
+    def _others(self) -> list[Member]:
+        return [m for m in self._view.values() if m.zid != self.zid]
+
+    @property
+    def me(self) -> Member:
+        if self._me is None:
+            raise ValueError(f"not a member of room {self.room!r} yet (call join first)")
+        return self._me
+
+    def members(self) -> list[Member]:
+        """Every member this one sees, itself included, sorted by code."""
+        with self._lock:
+            ms = self._others() + ([self._me] if self._me is not None else [])
+        return sorted(set(ms), key=lambda m: (m.code, m.device))
+
+    def status(self) -> dict:
+        """``room``, ``code`` (this member's family index), ``members`` for the service status."""
+        me = self._me
+        return {"room": self.room, "code": me.code if me is not None else None,
+                "members": [m.as_dict() for m in self.members()], "room_capacity": self.capacity,
+                "room_claim_changes": self.claim_changes}
+
+    # -- claim --------------------------------------------------------------------------------
+    def _declare(self, me: Member) -> None:
+        old, self._token = self._token, self.session.liveliness().declare_token(
+            token_key(self.prefix, self.room, me))
+        if old is not None:
+            old.undeclare()
+        self._me = me
+
+    def join(self) -> Member:
+        """Claim a device name and a code (see module docstring); returns this member's claim."""
+        time.sleep(self.settle_s)
+        for _ in range(MAX_JOIN_ROUNDS):
+            with self._lock:
+                others = self._others()
+            me = resolve(self.room, self.zid, self.base_device, others, self.capacity, current=self._me,
+                         explicit=self.explicit)
+            if me != self._me:
+                self._declare(me)
+                time.sleep(self.settle_s)
+                continue
+            with self._lock:
+                stable = resolve(self.room, self.zid, self.base_device, self._others(), self.capacity,
+                                 current=self._me, explicit=self.explicit) == self._me
+                if stable:
+                    self._joined = True
+                    self._notified = (self._me, tuple(self.members()))
+                    return self._me
+        raise ValueError(f"room {self.room!r}: no stable claim after {MAX_JOIN_ROUNDS} rounds "
+                         f"(members: {', '.join(m.device for m in self.members())})")
+
+    def _reclaim(self) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            before = self._me
+            try:
+                me = resolve(self.room, self.zid, self.base_device, self._others(), self.capacity,
+                             current=before, explicit=self.explicit)
+            except (RoomFull, RoomNameTaken) as exc:
+                lost = exc
+            else:
+                lost = None
+                if me != before:
+                    self._declare(me)
+                    self.claim_changes += 1
+        if lost is not None:
+            if self.on_lost is not None:
+                self.on_lost(lost)
+            return
+        state = (self._me, tuple(self.members()))
+        if self.on_change is not None and state != self._notified:
+            self._notified = state
+            self.on_change(self._me, list(state[1]))
+
+    def close(self) -> None:
+        """Leave the room: undeclare the token (frees the code) and the subscriber."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            token, self._token = self._token, None
+        for entity in (token, self._sub):
+            if entity is not None:
+                try:
+                    entity.undeclare()
+                except Exception:
+                    pass
+
+    def __enter__(self) -> "RoomClaim":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def others_of(members: Iterable[Member], me: Member) -> list[Member]:
+    """The members other than ``me``."""
+    return [m for m in members if m.zid != me.zid]

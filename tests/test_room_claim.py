@@ -1,0 +1,91 @@
+"""Room code claim: pure rules (tie-break, capacity, names) and real zenoh sessions on loopback."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+
+import pytest
+
+from edge.runtime.room import Member, RoomFull, RoomNameTaken, parse_token, resolve, token_key
+
+zenoh = pytest.importorskip("zenoh")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_rules_tie_break_capacity_and_names():
+    a, b, c = "0a", "0b", "0c"
+    # three members that started at the same instant all claimed code 0: only the smallest zid keeps it
+    same = [Member("dev", 0, a), Member("dev", 0, b), Member("dev", 0, c)]
+    assert resolve("r", a, "dev", same, 3, current=same[0]) == Member("dev", 0, a)
+    mb = resolve("r", b, "dev", same, 3, current=same[1])
+    assert mb.code == 1 and mb.device == "dev-2"
+    # capacity: the largest zid is refused, naming the room and members
+    with pytest.raises(RoomFull, match="room 'r' is full: its family has 2 codes"):
+        resolve("r", c, "dev", [Member("dev", 0, a), Member("dev-2", 1, b)], 2)
+    # a newcomer never takes a held code, even with a smaller zid; a freed code is reused
+    assert resolve("r", "01", "x", [Member("y", 0, a), Member("z", 2, b)], 3).code == 1
+    # explicit names are never renamed
+    with pytest.raises(RoomNameTaken, match="device name 'cam' is already in room 'r'"):
+        resolve("r", b, "cam", [Member("cam", 0, a)], 3, explicit=True)
+    key = token_key("sl", "r", Member("cam-2", 3, "abc"))
+    assert key == "sl/room/r/cam-2/3/abc" and parse_token(key, "sl", "r") == Member("cam-2", 3, "abc")
+    for bad in ("sl/room/r/cam/x/abc", "sl/room/r/cam/1", "sl/room/other/cam/1/abc", "sl/room/r/c m/1/z"):
+        assert parse_token(bad, "sl", "r") is None
+
+
+def _session(listen, connect=()):
+    from edge.io.zenoh import make_config
+
+    return zenoh.open(make_config(listen=[listen], connect=list(connect)))
+
+
+def test_claims_over_zenoh_distinct_full_and_freed():
+    from edge.io.room import RoomClaim, room_members
+
+    eps = [f"tcp/127.0.0.1:{free_port()}" for _ in range(4)]
+    sessions = [_session(eps[0])] + [_session(eps[i], eps[:i]) for i in range(1, 4)]
+    claims, errors = [], []
+    try:
+        claims = [RoomClaim(s, prefix="sl", room="lab", device="cam", capacity=3, settle_s=0.4) for s in sessions[:3]]
+        threads = [threading.Thread(target=lambda c=c: c.join()) for c in claims]  # simultaneous start
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(20)
+        codes = sorted(c.me.code for c in claims)
+        names = sorted(c.me.device for c in claims)
+        assert codes == [0, 1, 2] and len(set(names)) == 3, (codes, names)
+        time.sleep(0.5)
+        assert [m.code for m in room_members(sessions[3], "sl", "lab")] == [0, 1, 2]
+        fourth = RoomClaim(sessions[3], prefix="sl", room="lab", device="cam", capacity=3, settle_s=0.4)
+        with pytest.raises(RoomFull, match="room 'lab' is full.*cam"):
+            fourth.join()
+        fourth.close()
+        changes = []
+        claims[0].on_change = lambda me, members: changes.append(len(members))
+        freed = claims[1].me.code
+        claims[1].close()
+        sessions[1].close()  # the member's process goes away
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and len(claims[0].members()) != 2:
+            time.sleep(0.05)
+        assert len(claims[0].members()) == 2 and changes and changes[-1] == 2
+        again = RoomClaim(sessions[3], prefix="sl", room="lab", device="cam", capacity=3, settle_s=0.4)
+        assert again.join().code == freed
+        assert again.status()["code"] == freed and len(again.status()["members"]) == 3
+        again.close()
+    finally:
+        for c in claims:
+            c.close()
+        for s in sessions:
+            try:
+                s.close()
+            except Exception:
+                pass
