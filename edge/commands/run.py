@@ -29,6 +29,11 @@ def register(subparsers: Any) -> None:
     p.add_argument("--listen", action="append", metavar="ENDPOINT",
                    help="zenoh listen endpoint(s), overriding the profile (e.g. tcp/127.0.0.1:7450)")
     p.add_argument("--connect", action="append", metavar="ENDPOINT", help="zenoh endpoint(s) to connect to")
+    p.add_argument("--room", metavar="NAME",
+                   help="join room NAME: claim a distinct source code from the room's family over zenoh "
+                        "(overrides [room] name; see README 'Several devices in one room')")
+    p.add_argument("--device", metavar="NAME",
+                   help="zenoh key-space device name (overrides [zenoh] device; in a room it is never renamed)")
     p.add_argument("--interference", action="store_true",
                    help="event / light-curtain simulators: add an unsynchronised second device nearby")
     p.add_argument("--poses", type=int, default=0, metavar="K",
@@ -71,18 +76,28 @@ def load_run_profile(args: argparse.Namespace):
         zenoh["listen"] = list(args.listen)
     if getattr(args, "connect", None):
         zenoh["connect"] = list(args.connect)
-    if zenoh:
-        profile = apply_update(profile, {"zenoh": zenoh}, source=f"{profile.source} + command line")
+    if getattr(args, "device", None):
+        zenoh["device"] = args.device
+    update: dict[str, Any] = {"zenoh": zenoh} if zenoh else {}
+    if getattr(args, "room", None):
+        update["room"] = {"name": args.room}
+    if update:
+        profile = apply_update(profile, update, source=f"{profile.source} + command line")
     return profile
 
 
-def build_service(profile, args: argparse.Namespace, *, sinks: list[Any] | None = None):
-    """Sensor, publisher, recorder and `Service` for ``edge run`` arguments (see `register`)."""
+def build_service(profile, args: argparse.Namespace, *, sinks: list[Any] | None = None, room: Any = None,
+                  session: Any = None):
+    """Sensor, publisher, recorder and `Service` for ``edge run`` arguments (see `register`).
+
+    room / session: a joined `edge.io.room.RoomClaim` and its zenoh session (``edge run --room``):
+    the simulated sensors render the other members' light, the publisher uses that session."""
     from edge.runtime.service import Service
     from edge.sensors import open_sensor
 
+    extra = {"room": room} if room is not None else {}
     sensor = open_sensor(profile, args.sensor, replay_path=args.replay, max_speed=args.max_speed,
-                         poses=args.poses, interference=getattr(args, "interference", False))
+                         poses=args.poses, interference=getattr(args, "interference", False), **extra)
     if args.sensor == "replay" or (args.sensor is None and profile.sensor.backend == "replay"):
         profile = sensor.profile  # decode with the recorded profile
     sinks = list(sinks or [])
@@ -97,7 +112,7 @@ def build_service(profile, args: argparse.Namespace, *, sinks: list[Any] | None 
         if not args.no_zenoh:
             from edge.runtime.publish import ZenohSink
 
-            service.sinks.append(ZenohSink(profile, service))
+            service.sinks.append(ZenohSink(profile, service, session=session))
     except BaseException:
         for s in sinks:
             s.close()
@@ -116,7 +131,49 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--seconds must be > 0, got {args.seconds}")
     profile = load_run_profile(args)
     console = ConsoleSink(bar=args.bar, total=args.stacks, quiet=args.quiet)
+    if profile.room.name:
+        return _run_in_room(profile, args, console)
     service = build_service(profile, args, sinks=[console])
+    return _serve(service, args, console)
+
+
+def _run_in_room(profile, args: argparse.Namespace, console) -> int:
+    """``edge run --room NAME``: join the room (claim a code), run, leave (the code is freed)."""
+    from edge.io.room import join_room
+    from edge.runtime.room import room_profile
+
+    if args.no_zenoh:
+        raise ValueError("--room needs zenoh to find the other members, got --no-zenoh")
+    session, claim, member = join_room(profile, explicit_device=bool(getattr(args, "device", None)))
+    service = None
+    try:
+        print(f"edge run: room {profile.room.name!r}: device {claim.me.device}, code {claim.me.code} "
+              f"({member.code.source}), members {', '.join(m.device for m in claim.members())}", flush=True)
+        service = build_service(member, args, sinks=[console], room=claim, session=session)
+        service.extra_status.append(claim.status)
+
+        def on_change(me, members) -> None:
+            new = room_profile(profile, me)
+            if new.code.source != service.profile.code.source:
+                service.switch_profile(new)
+
+        def on_lost(exc: Exception) -> None:
+            service.counters.last_error = f"room: {exc}"
+            service.stop()
+
+        claim.on_change, claim.on_lost = on_change, on_lost
+        return _serve(service, args, console)
+    finally:
+        claim.close()
+        if service is None:
+            session.close()
+        else:
+            session.close()
+
+
+def _serve(service, args: argparse.Namespace, console) -> int:
+    from edge.runtime.console import summary_lines
+
     from edge.runtime.pipeline import pipeline_kind
 
     coding = " + ".join(x for x in (service.profile.code.name, service.profile.code.source and

@@ -197,3 +197,29 @@ class RoomClaim:
 def others_of(members: Iterable[Member], me: Member) -> list[Member]:
     """The members other than ``me``."""
     return [m for m in members if m.zid != me.zid]
+
+
+def join_room(profile, *, explicit_device: bool = False):
+    """Open a zenoh session from ``profile.zenoh``, join ``profile.room.name`` and claim a code.
+
+    Returns ``(session, claim, member_profile)``: the member profile carries the claimed family
+    code as ``code.source`` and the claimed device name (`edge.runtime.room.room_profile`).  On any
+    error the session is closed and the error (RoomFull / RoomNameTaken / ValueError) raised.
+    """
+    from edge.io.zenoh import open_session
+    from edge.runtime.room import room_family_for, room_profile
+
+    family = room_family_for(profile)  # fails early on an impossible family
+    session = open_session(profile.zenoh)
+    claim = None
+    try:
+        claim = RoomClaim(session, prefix=profile.zenoh.prefix, room=profile.room.name,
+                          device=profile.zenoh.device, capacity=len(family), explicit=explicit_device,
+                          settle_s=profile.room.settle_s)
+        me = claim.join()
+        return session, claim, room_profile(profile, me)
+    except BaseException:
+        if claim is not None:
+            claim.close()
+        session.close()
+        raise

@@ -16,11 +16,11 @@ from .pipeline import DepthResult
 class ZenohSink:
     """Publishes every `DepthResult` and status dict.  ``service`` may be None (replay --publish)."""
 
-    def __init__(self, profile, service: Any = None) -> None:
+    def __init__(self, profile, service: Any = None, *, session: Any = None) -> None:
         from edge.io.zenoh import DepthPublisher
 
         on_update = service.update_config if service is not None else _reject_updates
-        self.publisher = DepthPublisher(profile, on_update=on_update)
+        self.publisher = DepthPublisher(profile, on_update=on_update, session=session)
         self.sequence = 0
 
     def on_result(self, result: DepthResult) -> None:

@@ -89,6 +89,8 @@ class Service:
         self.last_result: DepthResult | None = None
         self.results_seen = 0
         self.pipeline_stats: dict[str, int] = {}  # sums of every decoded stack's DepthResult.stats
+        #: callables returning extra status fields (e.g. the room claim: room, code, members)
+        self.extra_status: list[Callable[[], dict[str, Any]]] = []
 
     # -- control ------------------------------------------------------------------------------
     def stop(self) -> None:
@@ -124,6 +126,17 @@ class Service:
             self.profile = new
             self.counters.config_updates += 1
         return new
+
+    def switch_profile(self, new) -> None:
+        """Apply a profile chosen by the service itself (a changed room claim: another source code or
+        device name) between stacks; the stack schedule must stay the same.  Not for user updates
+        (those go through `update_config`)."""
+        pipeline = self.pipeline_factory(new)
+        if not np.array_equal(np.asarray(pipeline.schedule), np.asarray(self.pipeline.schedule)):
+            raise ValueError(f"profile switch would change the stack schedule of {self.profile.name!r}")
+        with self._lock:
+            self._pending_profile = (new, pipeline)
+            self.profile = new
 
     # -- threads ------------------------------------------------------------------------------
     def _capture_loop(self) -> None:
@@ -248,6 +261,7 @@ class Service:
             "sensor_stats": self.sensor.stats() if callable(getattr(self.sensor, "stats", None)) else None,
             "errors": self.counters.last_error,
             **{k: v for k, v in self.pipeline_stats.items() if k not in ("stacks_decoded",)},
+            **{k: v for f in self.extra_status for k, v in f().items()},
         }
 
     def _emit_status(self) -> None:

@@ -118,11 +118,14 @@ def projector_irradiance(scene: Scene, projector_frames: np.ndarray, camera: Cam
 
 
 def capture(scene: Scene, projector_frames: np.ndarray, camera: CameraModel, *,
-            rng: np.random.Generator | int | None, exposure: float | None = None) -> np.ndarray:
+            rng: np.random.Generator | int | None, exposure: float | None = None,
+            extra_irradiance: np.ndarray | None = None) -> np.ndarray:
     """Camera frames (m, H, W) of ``scene`` lit by ``projector_frames`` (eq. 1 plus noise and ADC).
 
     exposure: per-frame exposure (relative units), default ``camera.exposure``; light and ambient
-    scale linearly with it.  rng: numpy Generator (or int seed) for the noise.
+    scale linearly with it.  rng: numpy Generator (or int seed) for the noise.  extra_irradiance:
+    optional float32 (m, H, W) light of other projectors (same units as the own projector's
+    irradiance, e.g. other devices in the room), added before noise and ADC.
     Returns uint8 frames for 8-bit cameras, uint16 (0..2**bits-1) otherwise.
     """
     t = camera.exposure if exposure is None else exposure
@@ -130,6 +133,8 @@ def capture(scene: Scene, projector_frames: np.ndarray, camera: CameraModel, *,
         raise ValueError(f"capture: exposure must be > 0, got {t}")
     gen = _as_rng(rng)
     e = projector_irradiance(scene, projector_frames, camera)
+    if extra_irradiance is not None:
+        e = np.ascontiguousarray(e + np.asarray(extra_irradiance, np.float32))
     normals = gen.standard_normal(e.shape, dtype=np.float32)
     out = np.empty(e.shape, dtype=np.uint8 if camera.bits == 8 else np.uint16)
     expose(e, scene.albedo, float(t * camera.projector), float(t * camera.ambient), normals,
