@@ -151,11 +151,17 @@ def _run_in_room(profile, args: argparse.Namespace, console) -> int:
               f"({member.code.source}), members {', '.join(m.device for m in claim.members())}", flush=True)
         service = build_service(member, args, sinks=[console], room=claim, session=session)
         service.extra_status.append(claim.status)
+        _tell_foreign(service.pipeline, claim.me, claim.members(), profile)
+        seen = [(claim.me, tuple(claim.members()))]
 
         def on_change(me, members) -> None:
+            if (me, tuple(members)) == seen[0]:
+                return
+            seen[0] = (me, tuple(members))
             new = room_profile(profile, me)
-            if new.code.source != service.profile.code.source:
-                service.switch_profile(new)
+            pipeline = service.pipeline_factory(new)
+            _tell_foreign(pipeline, me, members, profile)
+            service.switch_profile(new, pipeline)
 
         def on_lost(exc: Exception) -> None:
             service.counters.last_error = f"room: {exc}"
@@ -165,10 +171,17 @@ def _run_in_room(profile, args: argparse.Namespace, console) -> int:
         return _serve(service, args, console)
     finally:
         claim.close()
-        if service is None:
-            session.close()
-        else:
-            session.close()
+        session.close()
+
+
+def _tell_foreign(pipeline, me, members, profile) -> None:
+    """Give a pipeline that can use them the other members' source codes (joint matched filter)."""
+    from edge.runtime.room import room_family_for
+
+    if hasattr(pipeline, "foreign_sources"):
+        family = room_family_for(profile)
+        pipeline.foreign_sources = tuple(family[m.code].string for m in members
+                                         if m.zid != me.zid and 0 <= m.code < len(family))
 
 
 def _serve(service, args: argparse.Namespace, console) -> int:

@@ -127,11 +127,11 @@ class Service:
             self.counters.config_updates += 1
         return new
 
-    def switch_profile(self, new) -> None:
+    def switch_profile(self, new, pipeline=None) -> None:
         """Apply a profile chosen by the service itself (a changed room claim: another source code or
-        device name) between stacks; the stack schedule must stay the same.  Not for user updates
-        (those go through `update_config`)."""
-        pipeline = self.pipeline_factory(new)
+        the other members' codes) between stacks, with ``pipeline`` (default: built from ``new``); the
+        stack schedule must stay the same.  Not for user updates (those go through `update_config`)."""
+        pipeline = pipeline if pipeline is not None else self.pipeline_factory(new)
         if not np.array_equal(np.asarray(pipeline.schedule), np.asarray(self.pipeline.schedule)):
             raise ValueError(f"profile switch would change the stack schedule of {self.profile.name!r}")
         with self._lock:
