@@ -35,6 +35,8 @@ from edge.runtime.room import Member, RoomFull, RoomNameTaken, parse_token, reso
 
 __all__ = ["RoomClaim", "RoomFull", "RoomNameTaken", "room_members"]
 
+#: Seconds `join_room` waits for a first peer / router link when connect endpoints are configured.
+CONNECT_WAIT_S = 5.0
 #: Rounds of re-claiming `join` tries before it gives up (each member moves at most N - 1 times).
 MAX_JOIN_ROUNDS = 32
 
@@ -213,6 +215,11 @@ def join_room(profile, *, explicit_device: bool = False):
     session = open_session(profile.zenoh)
     claim = None
     try:
+        if profile.zenoh.connect:  # the view means nothing before the links to the peers are up
+            deadline = time.monotonic() + CONNECT_WAIT_S
+            while time.monotonic() < deadline and not list(session.info.peers_zid()) \
+                    and not list(session.info.routers_zid()):
+                time.sleep(0.05)
         claim = RoomClaim(session, prefix=profile.zenoh.prefix, room=profile.room.name,
                           device=profile.zenoh.device, capacity=len(family), explicit=explicit_device,
                           settle_s=profile.room.settle_s)
