@@ -17,7 +17,8 @@ from ambient and from every device in the model whatever their level.
 
 Offsets: `estimate_offsets` searches each foreign device's offset on a 1/``steps`` slot grid over
 one symbol (its symbol values are free unknowns, so the offset matters modulo L) by the residual
-energy of the fit on a sample of pixels, coordinate-wise over the devices, twice.
+energy of the fit on a sample of pixels: devices added one by one on a 1/4-slot grid, then each
+re-searched over the whole grid against all the others until no offset changes (at most 3 passes).
 
 Detection (`detect`): the noise sigma of each pixel is measured from the fit residual (with the
 residual degrees of freedom), the noise of each own amplitude is ``sigma * |g_i|`` (g_i the
@@ -125,14 +126,16 @@ def estimate_offsets(slots: np.ndarray, own: SourceCode, foreign: Sequence[Sourc
                 best, best_gain = float(g), gain
         return best
 
+    full = np.arange(L * steps) / float(steps)
     for k in range(len(foreign)):  # add the devices one by one on a 1/4-slot grid
         offs[k] = best_of(k, coarse, active)
         active.append(k)
-    fine = np.arange(-4, 5) / (2.0 * steps)
-    for _ in range(2):  # refine each against all the others on a 1/(2 steps) grid
+    for _ in range(3):  # then each on the full 1/steps grid against all the others, until stable
+        before = list(offs)
         for k in range(len(foreign)):
-            others = [i for i in active if i != k]
-            offs[k] = best_of(k, (offs[k] + fine) % L, others) % L
+            offs[k] = best_of(k, full, [i for i in active if i != k])
+        if offs == before:
+            break
     return tuple(offs)
 
 
