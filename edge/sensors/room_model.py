@@ -66,12 +66,17 @@ class StaticMember:
 
 
 class StaticRoom:
-    """A fixed claim table for one-process simulations: ``StaticRoom("lab", members, me_index)``."""
+    """A fixed claim table for one-process simulations: ``StaticRoom("lab", members, me_index)``.
 
-    def __init__(self, room: str, members: Sequence[StaticMember], me: int = 0) -> None:
+    codes: optional bit string per device name overriding the family (e.g. every device uncoded,
+    ``"1"``, for the comparisons of tools/eval_room.py)."""
+
+    def __init__(self, room: str, members: Sequence[StaticMember], me: int = 0,
+                 codes: dict[str, str] | None = None) -> None:
         self.room = room
         self._members = list(members)
         self.me = self._members[me]
+        self.codes = dict(codes) if codes else None
 
     def members(self):
         return list(self._members)
@@ -99,9 +104,16 @@ class RoomLight:
         drift = (2 * _unit(name, device, "drift") - 1) * DRIFT_PPM * 1e-6
         return phase, drift
 
+    def code_of(self, member) -> str:
+        """A member's code bit string: the room's explicit codes if it has them, else its family code."""
+        codes = getattr(self.room, "codes", None)
+        if codes:
+            return codes[member.device]
+        return self.family[int(member.code) % len(self.family)].string
+
     def own_code(self) -> str:
         """My code's bit string (from my current claim)."""
-        return self.family[int(self.room.me.code) % len(self.family)].string
+        return self.code_of(self.room.me)
 
     def foreign(self) -> list[ForeignDevice]:
         """The other members as my camera sees them (sorted by device name)."""
@@ -114,7 +126,7 @@ class RoomLight:
                 continue
             phi, d = self.clock(m.device)
             out.append(ForeignDevice(
-                device=m.device, code=self.family[int(m.code) % len(self.family)].string,
+                device=m.device, code=self.code_of(m),
                 offset_slots=phi - phi_me, drift=d - d_me,
                 power=0.5 + 0.5 * _unit(name, me.device, m.device, "power"),
                 baseline_factor=1.3 + 0.9 * _unit(name, me.device, m.device, "baseline"),
