@@ -89,3 +89,42 @@ def test_claims_over_zenoh_distinct_full_and_freed():
                 s.close()
             except Exception:
                 pass
+
+
+def test_running_member_moves_when_an_outranking_claim_appears():
+    """A conflict seen while running (e.g. a healed network partition): the larger zid re-claims and
+    tells the service (on_change); the new token replaces the old one."""
+    from edge.io.room import RoomClaim, room_members
+
+    eps = [f"tcp/127.0.0.1:{free_port()}" for _ in range(2)]
+    a, b = _session(eps[0]), _session(eps[1], eps[:1])
+    claim = RoomClaim(a, prefix="sl", room="lab", device="cam", capacity=3, settle_s=0.3)
+    try:
+        assert claim.join().code == 0
+        changes = []
+        claim.on_change = lambda me, members: changes.append(me.code)
+        ghost = b.liveliness().declare_token("sl/room/lab/ghost/0/0")  # zid 0 outranks every session
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and claim.me.code == 0:
+            time.sleep(0.05)
+        assert claim.me.code == 1 and changes and changes[-1] == 1 and claim.claim_changes == 1
+        time.sleep(0.3)
+        assert sorted((m.device, m.code) for m in room_members(b, "sl", "lab")) == [("cam", 1), ("ghost", 0)]
+        ghost.undeclare()
+    finally:
+        claim.close()
+        a.close()
+        b.close()
+
+
+def test_service_switch_profile_keeps_the_schedule():
+    from _service_helpers import load_test_profile
+    from edge.runtime.service import Service
+    from edge.sensors.sim import SimSensor
+
+    p = load_test_profile(code={"source": "00110101"})
+    service = Service(p, SimSensor(p, stacks=1, max_speed=True))
+    service.switch_profile(load_test_profile(code={"source": "00011001"}))
+    assert service.profile.code.source == "00011001"
+    with pytest.raises(ValueError, match="stack schedule"):
+        service.switch_profile(load_test_profile(code={"source": "0011"}))

@@ -302,3 +302,24 @@ def format_table(rows: Sequence[TableRow], *, power_ratio: float = 1.0) -> str:
         cells += [fmt(by[("source codes", L)]) if ("source codes", L) in by else "-" for L in lengths]
         out.append("| " + " | ".join(cells) + " |")
     return "\n".join(out)
+
+
+# -- a profile's room family (duck-typed: reads profile.sensor / projector / room / name) --------
+
+def room_code_kind(profile) -> tuple[str, str]:
+    """(kind, stream) of a profile's family: ``event`` for event sensors (else ``frame``); ``periodic``
+    for dot projectors (they repeat their code), ``aperiodic`` for DLP patterns and light curtains."""
+    kind = "event" if profile.sensor.backend == "event" else "frame"
+    stream = "periodic" if profile.projector.kind == "dots" else "aperiodic"
+    return kind, stream
+
+
+def room_family_for(profile):
+    """The room's source-code family for ``profile`` (`edge.codes.source_room.room_family` with
+    ``[room] family_size`` codes of ``[room] code_length`` slots)."""
+    kind, stream = room_code_kind(profile)
+    try:
+        return room_family(profile.room.family_size, profile.room.code_length, kind, stream)
+    except ValueError as exc:
+        raise ValueError(f"profile {profile.name!r}: [room] family_size = {profile.room.family_size}, "
+                         f"code_length = {profile.room.code_length}: {exc}") from None

@@ -136,26 +136,7 @@ def resolve(room: str, zid: str, base_device: str, others: Iterable[Member], cap
 
 # -- the room's family and a member's profile -------------------------------------------------------
 
-def room_code_kind(profile) -> tuple[str, str]:
-    """(kind, stream) of a profile's family: ``event`` for event sensors (else ``frame``); ``periodic``
-    for dot projectors (they repeat their code), ``aperiodic`` for DLP patterns and light curtains."""
-    kind = "event" if profile.sensor.backend == "event" else "frame"
-    stream = "periodic" if profile.projector.kind == "dots" else "aperiodic"
-    return kind, stream
-
-
-def room_family_for(profile):
-    """The room's source-code family for ``profile`` (`edge.codes.source_room.room_family` with
-    ``[room] family_size`` codes of ``[room] code_length`` slots)."""
-    from edge.codes.source_room import room_family
-
-    kind, stream = room_code_kind(profile)
-    try:
-        return room_family(profile.room.family_size, profile.room.code_length, kind, stream)
-    except ValueError as exc:
-        raise ValueError(f"profile {profile.name!r}: [room] family_size = {profile.room.family_size}, "
-                         f"code_length = {profile.room.code_length}: {exc}") from None
-
+from edge.codes.source_room import room_code_kind, room_family_for  # noqa: E402  (re-exported)
 
 def room_profile(profile, member: Member):
     """``profile`` as the room member ``member``: its family code as ``code.source`` and its device

@@ -4,7 +4,7 @@ What is shared between the processes of a room is only the **claim table** (ever
 name and code index, from the liveliness tokens of `edge.io.room`); everything else is derived from
 it deterministically, identically in every process, by `RoomLight`:
 
-* the room's family (`edge.runtime.room.room_family_for`): member code index -> bit string;
+* the room's family (`edge.codes.source_room.room_family_for`): member code index -> bit string;
 * a **room clock**: device d's slot clock runs at ``1 + drift_d`` own slots per room slot and
   starts at phase ``phi_d`` (slots), both hashed from (room, d) (drift within +-50 ppm, phase
   fractional); the offset of device k seen by device me at my slot t is
@@ -91,7 +91,7 @@ class RoomLight:
     """
 
     def __init__(self, profile, room) -> None:
-        from edge.runtime.room import room_family_for
+        from edge.codes.source_room import room_family_for
 
         self.profile = profile
         self.room = room
