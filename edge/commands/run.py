@@ -86,18 +86,40 @@ def load_run_profile(args: argparse.Namespace):
     return profile
 
 
-def build_service(profile, args: argparse.Namespace, *, sinks: list[Any] | None = None, room: Any = None,
-                  session: Any = None):
+def join_run_room(profile, args: argparse.Namespace):
+    """``edge run --room`` / ``[room] name``: join the room (claim a code) -> `edge.io.room.RoomLink`,
+    or None when the profile is not in a room."""
+    if not profile.room.name:
+        return None
+    if getattr(args, "no_zenoh", False):
+        raise ValueError("--room needs zenoh to find the other members, got --no-zenoh")
+    from edge.io.room import RoomLink
+
+    room = RoomLink(profile, explicit_device=bool(getattr(args, "device", None)))
+    print(f"edge run: {room.describe()}", flush=True)
+    return room
+
+
+def build_service(profile, args: argparse.Namespace, *, sinks: list[Any] | None = None, room: Any = None):
     """Sensor, publisher, recorder and `Service` for ``edge run`` arguments (see `register`).
 
-    room / session: a joined `edge.io.room.RoomClaim` and its zenoh session (``edge run --room``):
-    the simulated sensors render the other members' light, the publisher uses that session."""
+    room: a joined `edge.io.room.RoomLink` (``edge run --room``): the member profile is used, the
+    simulated sensors render the other members' light, the publisher shares the room's session and
+    the room is the service's last sink (its shutdown leaves the room)."""
     from edge.runtime.service import Service
     from edge.sensors import open_sensor
 
-    extra = {"room": room} if room is not None else {}
-    sensor = open_sensor(profile, args.sensor, replay_path=args.replay, max_speed=args.max_speed,
-                         poses=args.poses, interference=getattr(args, "interference", False), **extra)
+    if room is not None:
+        profile = room.profile
+        sinks = list(sinks or []) + [room]  # closed with the sinks if anything below fails
+    extra = {"room": room.claim} if room is not None else {}
+    try:
+        sensor = open_sensor(profile, args.sensor, replay_path=args.replay, max_speed=args.max_speed,
+                             poses=args.poses, interference=getattr(args, "interference", False), **extra)
+    except BaseException:
+        if room is not None:
+            room.close()  # leave the room: the code is free again
+        raise
     if args.sensor == "replay" or (args.sensor is None and profile.sensor.backend == "replay"):
         profile = sensor.profile  # decode with the recorded profile
     sinks = list(sinks or [])
@@ -112,7 +134,11 @@ def build_service(profile, args: argparse.Namespace, *, sinks: list[Any] | None 
         if not args.no_zenoh:
             from edge.runtime.publish import ZenohSink
 
-            service.sinks.append(ZenohSink(profile, service, session=session))
+            service.sinks.append(ZenohSink(profile, service, session=room.session if room is not None else None))
+        if room is not None:  # the room leaves last (after the publisher that shares its session)
+            service.sinks.remove(room)
+            service.sinks.append(room)
+            room.attach(service)
     except BaseException:
         for s in sinks:
             s.close()
@@ -131,62 +157,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--seconds must be > 0, got {args.seconds}")
     profile = load_run_profile(args)
     console = ConsoleSink(bar=args.bar, total=args.stacks, quiet=args.quiet)
-    if profile.room.name:
-        return _run_in_room(profile, args, console)
-    service = build_service(profile, args, sinks=[console])
-    return _serve(service, args, console)
-
-
-def _run_in_room(profile, args: argparse.Namespace, console) -> int:
-    """``edge run --room NAME``: join the room (claim a code), run, leave (the code is freed)."""
-    from edge.io.room import join_room
-    from edge.runtime.room import room_profile
-
-    if args.no_zenoh:
-        raise ValueError("--room needs zenoh to find the other members, got --no-zenoh")
-    session, claim, member = join_room(profile, explicit_device=bool(getattr(args, "device", None)))
-    service = None
-    try:
-        print(f"edge run: room {profile.room.name!r}: device {claim.me.device}, code {claim.me.code} "
-              f"({member.code.source}), members {', '.join(m.device for m in claim.members())}", flush=True)
-        service = build_service(member, args, sinks=[console], room=claim, session=session)
-        service.extra_status.append(claim.status)
-        _tell_foreign(service.pipeline, claim.me, claim.members(), profile)
-        seen = [(claim.me, tuple(claim.members()))]
-
-        def on_change(me, members) -> None:
-            if (me, tuple(members)) == seen[0]:
-                return
-            seen[0] = (me, tuple(members))
-            new = room_profile(profile, me)
-            pipeline = service.pipeline_factory(new)
-            _tell_foreign(pipeline, me, members, profile)
-            service.switch_profile(new, pipeline)
-
-        def on_lost(exc: Exception) -> None:
-            service.counters.last_error = f"room: {exc}"
-            service.stop()
-
-        claim.on_change, claim.on_lost = on_change, on_lost
-        return _serve(service, args, console)
-    finally:
-        claim.close()
-        session.close()
-
-
-def _tell_foreign(pipeline, me, members, profile) -> None:
-    """Give a pipeline that can use them the other members' source codes (joint matched filter)."""
-    from edge.runtime.room import room_family_for
-
-    if hasattr(pipeline, "foreign_sources"):
-        family = room_family_for(profile)
-        pipeline.foreign_sources = tuple(family[m.code].string for m in members
-                                         if m.zid != me.zid and 0 <= m.code < len(family))
-
-
-def _serve(service, args: argparse.Namespace, console) -> int:
-    from edge.runtime.console import summary_lines
-
+    service = build_service(profile, args, sinks=[console], room=join_run_room(profile, args))
     from edge.runtime.pipeline import pipeline_kind
 
     coding = " + ".join(x for x in (service.profile.code.name, service.profile.code.source and

@@ -230,3 +230,71 @@ def join_room(profile, *, explicit_device: bool = False):
             claim.close()
         session.close()
         raise
+
+
+class RoomLink:
+    """A joined room wired into one service: ``edge run --room`` (a sink of the service, so the
+    service's shutdown leaves the room).
+
+    `attach` adds the room to the service's status (``room``, ``code``, ``members``), gives the
+    pipeline the other members' codes (joint matched filter, where the pipeline has
+    ``foreign_sources``) and applies later claim changes between stacks (`Service.switch_profile`);
+    a member that loses its code with none free stops the service with the reason in status.
+    `close` (called by the service's shutdown, last of its sinks) frees the code and closes the session.
+    """
+
+    def __init__(self, base_profile, *, explicit_device: bool = False) -> None:
+        self.base = base_profile
+        self.session, self.claim, self.profile = join_room(base_profile, explicit_device=explicit_device)
+        self.service = None
+        self._seen = (self.claim.me, tuple(self.claim.members()))
+
+    def describe(self) -> str:
+        me = self.claim.me
+        return (f"room {self.claim.room!r}: device {me.device}, code {me.code} ({self.profile.code.source}), "
+                f"members {', '.join(m.device for m in self.claim.members())}")
+
+    def foreign_sources(self, me: Member, members) -> tuple[str, ...]:
+        from edge.runtime.room import room_family_for
+
+        family = room_family_for(self.base)
+        return tuple(family[m.code].string for m in members if m.zid != me.zid and 0 <= m.code < len(family))
+
+    def attach(self, service) -> None:
+        self.service = service
+        service.extra_status.append(self.claim.status)
+        if hasattr(service.pipeline, "foreign_sources"):
+            service.pipeline.foreign_sources = self.foreign_sources(self.claim.me, self.claim.members())
+        self.claim.on_change = self._on_change
+        self.claim.on_lost = self._on_lost
+
+    def _on_change(self, me: Member, members) -> None:
+        from edge.runtime.room import room_profile
+
+        if (me, tuple(members)) == self._seen or self.service is None:
+            return
+        self._seen = (me, tuple(members))
+        new = room_profile(self.base, me)
+        pipeline = self.service.pipeline_factory(new)
+        if hasattr(pipeline, "foreign_sources"):
+            pipeline.foreign_sources = self.foreign_sources(me, members)
+        self.service.switch_profile(new, pipeline)
+
+    def _on_lost(self, exc: Exception) -> None:
+        if self.service is not None:
+            self.service.counters.last_error = f"room: {exc}"
+            self.service.stop()
+
+    # sink protocol: nothing per result / status; close leaves the room
+    def on_result(self, result) -> None:
+        pass
+
+    def on_status(self, status) -> None:
+        pass
+
+    def close(self) -> None:
+        self.claim.close()
+        try:
+            self.session.close()
+        except Exception:
+            pass
