@@ -35,7 +35,7 @@ def test_foreign_columns_are_overlap_weighted_and_design_is_full_rank():
 def test_joint_filter_keeps_own_signal_under_overlap(n):
     """Item 2 figures: N <= 4, every foreign device at most as bright as the own one, fractional offsets,
     +-1e-3 drift, noise: own signal kept >= 95 %, false detections <= 0.5 %; the plain filter loses more."""
-    r = evaluate(SlotScenario(n, pixels=800, seed=1), room_family(4, 8))
+    r = evaluate(SlotScenario(n, pixels=600, seed=1), room_family(4, 8))
     assert r["joint"]["own_kept"] >= 0.95 and r["joint"]["false"] <= 0.005, r
     assert r["matched"]["own_kept"] < r["joint"]["own_kept"]
     assert r["uncoded"]["false"] > 0.005  # without codes foreign light is taken for own light

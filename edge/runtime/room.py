@@ -29,6 +29,8 @@ import re
 from dataclasses import dataclass
 from typing import Iterable, Sequence
 
+from edge.codes.source_room import room_code_kind, room_family_for  # noqa: F401  (re-exported here)
+
 #: A device-name key chunk (as `edge.profiles.settings.ZenohSettings.device`).
 _CHUNK = re.compile(r"[A-Za-z0-9_-]+")
 
@@ -135,8 +137,6 @@ def resolve(room: str, zid: str, base_device: str, others: Iterable[Member], cap
 
 
 # -- the room's family and a member's profile -------------------------------------------------------
-
-from edge.codes.source_room import room_code_kind, room_family_for  # noqa: E402  (re-exported)
 
 def room_profile(profile, member: Member):
     """``profile`` as the room member ``member``: its family code as ``code.source`` and its device
