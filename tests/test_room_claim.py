@@ -34,6 +34,10 @@ def test_rules_tie_break_capacity_and_names():
     # explicit names are never renamed
     with pytest.raises(RoomNameTaken, match="device name 'cam' is already in room 'r'"):
         resolve("r", b, "cam", [Member("cam", 0, a)], 3, explicit=True)
+    with pytest.raises(RoomNameTaken):  # a newcomer never displaces a running member, whatever the zids
+        resolve("r", a, "cam", [Member("cam", 0, b)], 3, explicit=True)
+    # two that declared the same explicit name at once: the smaller zid keeps it
+    assert resolve("r", a, "cam", [Member("cam", 1, b)], 3, explicit=True, current=Member("cam", 0, a)).device == "cam"
     key = token_key("sl", "r", Member("cam-2", 3, "abc"))
     assert key == "sl/room/r/cam-2/3/abc" and parse_token(key, "sl", "r") == Member("cam-2", 3, "abc")
     for bad in ("sl/room/r/cam/x/abc", "sl/room/r/cam/1", "sl/room/other/cam/1/abc", "sl/room/r/c m/1/z"):

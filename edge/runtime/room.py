@@ -14,7 +14,8 @@ Invariants (every member applies the same rules to the same view, so they conver
 3. **Lowest free.**  A member without a claim, or that lost one, takes the lowest code index held
    by no other member it sees, and for a default (non-explicit) device name the first of
    ``base, base-2, base-3, ...`` used by no other member.  Codes of members that left (token gone)
-   are free again.
+   are free again.  A newcomer never takes a held code or explicit name, so a running member is
+   never displaced by one that joins later.
 4. **Capacity.**  When every code is held by others, `resolve` raises `RoomFull` naming the room and
    its members: a device beyond the family's capacity refuses to run.  An explicit device name
    (``--device``) held by a member with a smaller zid raises `RoomNameTaken` instead of renaming.
@@ -116,7 +117,8 @@ def resolve(room: str, zid: str, base_device: str, others: Iterable[Member], cap
     if current is not None and not any(m.device == current.device and _outranks(m, zid) for m in others):
         device = current.device
     elif explicit:
-        if any(m.device == base_device and _outranks(m, zid) for m in others):
+        # a newcomer never takes a held name; of two that declared it at once the smaller zid keeps it
+        if any(m.device == base_device and (current is None or _outranks(m, zid)) for m in others):
             raise RoomNameTaken(room, base_device, others)
         device = base_device
     else:
