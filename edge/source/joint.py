@@ -18,7 +18,8 @@ from ambient and from every device in the model whatever their level.
 Offsets: `estimate_offsets` searches each foreign device's offset on a 1/``steps`` slot grid over
 one symbol (its symbol values are free unknowns, so the offset matters modulo L) by the residual
 energy of the fit on a sample of pixels: devices added one by one on a 1/4-slot grid, then each
-re-searched over the whole grid against all the others until no offset changes (at most 3 passes).
+re-searched over the whole grid against all the others until no offset changes (at most 3 passes);
+restarted from up to 4 rotations of the order the devices are added in, the best fit kept.
 
 Detection (`detect`): the noise sigma of each pixel is measured from the fit residual (with the
 residual degrees of freedom), the noise of each own amplitude is ``sigma * |g_i|`` (g_i the
@@ -96,7 +97,7 @@ def _fit(X: np.ndarray, R: np.ndarray, m: int):
 
 
 def estimate_offsets(slots: np.ndarray, own: SourceCode, foreign: Sequence[SourceCode], *, steps: int = 8,
-                     sample: int = 400, seed: int = 0) -> tuple[float, ...]:
+                     sample: int = 400, seed: int = 0, restarts: int = 4) -> tuple[float, ...]:
     """Offsets (slots, in [0, L)) of the foreign devices that best explain ``slots`` (m*L, ...)."""
     L = own.length
     R = np.asarray(slots, np.float64).reshape(slots.shape[0], -1)
@@ -109,33 +110,48 @@ def estimate_offsets(slots: np.ndarray, own: SourceCode, foreign: Sequence[Sourc
         idx = rng.choice(idx, sample, replace=False)
     Rs = R[:, idx]
     coarse = np.arange(L * 4) / 4.0
-    offs = [0.0] * len(foreign)
-    active: list[int] = []
-
-    def best_of(k: int, grid: np.ndarray, fixed: list[int]) -> float:
-        base = design(own, [foreign[i] for i in fixed], [offs[i] for i in fixed], m)
-        qb = _orth(base)
-        rb = Rs - qb @ (qb.T @ Rs)
-        best, best_gain = offs[k], -np.inf
-        for g in grid:
-            fc = foreign_columns(foreign[k], n, float(g))
-            fb = fc - qb @ (qb.T @ fc)
-            qf = _orth(fb)
-            gain = float(((qf.T @ rb) ** 2).sum())  # energy the device explains beyond the rest
-            if gain > best_gain + 1e-12:
-                best, best_gain = float(g), gain
-        return best
-
     full = np.arange(L * steps) / float(steps)
-    for k in range(len(foreign)):  # add the devices one by one on a 1/4-slot grid
-        offs[k] = best_of(k, coarse, active)
-        active.append(k)
-    for _ in range(3):  # then each on the full 1/steps grid against all the others, until stable
-        before = list(offs)
-        for k in range(len(foreign)):
-            offs[k] = best_of(k, full, [i for i in active if i != k])
-        if offs == before:
-            break
+
+    def search(order: list[int]) -> list[float]:
+        offs = [0.0] * len(foreign)
+
+        def best_of(k: int, grid: np.ndarray, fixed: list[int]) -> float:
+            base = design(own, [foreign[i] for i in fixed], [offs[i] for i in fixed], m)
+            qb = _orth(base)
+            rb = Rs - qb @ (qb.T @ Rs)
+            best, best_gain = offs[k], -np.inf
+            for g in grid:
+                fc = foreign_columns(foreign[k], n, float(g))
+                fb = fc - qb @ (qb.T @ fc)
+                qf = _orth(fb)
+                gain = float(((qf.T @ rb) ** 2).sum())  # energy the device explains beyond the rest
+                if gain > best_gain + 1e-12:
+                    best, best_gain = float(g), gain
+            return best
+
+        active: list[int] = []
+        for k in order:  # add the devices one by one on a 1/4-slot grid
+            offs[k] = best_of(k, coarse, active)
+            active.append(k)
+        for _ in range(3):  # then each on the full 1/steps grid against all the others, until stable
+            before = list(offs)
+            for k in order:
+                offs[k] = best_of(k, full, [i for i in active if i != k])
+            if offs == before:
+                break
+        return offs
+
+    # coordinate search can stall in a local optimum that depends on the order the devices are
+    # added in: restart from up to `restarts` rotations of the order, keep the best fit
+    K = len(foreign)
+    best_offs, best_cost = [0.0] * K, np.inf
+    for r in range(min(K, restarts)):
+        order = list(range(r, K)) + list(range(r))
+        offs = search(order)
+        c = cost_sub(own, foreign, offs, m, Rs)
+        if c < best_cost - 1e-9:
+            best_offs, best_cost = offs, c
+    offs = best_offs
     return tuple(offs)
 
 
