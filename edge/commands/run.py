@@ -61,6 +61,11 @@ def register(subparsers: Any) -> None:
     p.add_argument("--connect-timeout", type=float, metavar="S",
                    help="client mode: wait up to S s at start-up for a --connect router (default: the profile's "
                         "zenoh.connect_timeout_s, 0 = fail at once)")
+    p.add_argument("--room", metavar="NAME",
+                   help="join room NAME: claim a distinct source code from the room's family over zenoh "
+                        "(overrides [room] name; see README 'Several devices in one room')")
+    p.add_argument("--device", metavar="NAME",
+                   help="zenoh key-space device name (overrides [zenoh] device; in a room it is never renamed)")
     p.add_argument("--interference", action="store_true",
                    help="event / light-curtain simulators: add an unsynchronised second device nearby")
     p.add_argument("--poses", type=int, default=0, metavar="K",
@@ -129,9 +134,13 @@ def load_run_profile(args: argparse.Namespace):
             zenoh["listen"] = []  # a client reaches everyone through its routers: no port to clash
     if getattr(args, "connect_timeout", None) is not None:
         zenoh["connect_timeout_s"] = args.connect_timeout
+    if getattr(args, "device", None):
+        zenoh["device"] = args.device
     update: dict[str, Any] = {"zenoh": zenoh} if zenoh else {}
     if getattr(args, "ros", False):
         update["ros"] = {"enabled": True}
+    if getattr(args, "room", None):
+        update["room"] = {"name": args.room}
     if update:
         profile = apply_update(profile, update, source=f"{profile.source} + command line")
     if profile.ros.enabled and profile.ros.router not in profile.zenoh.connect:
@@ -141,19 +150,45 @@ def load_run_profile(args: argparse.Namespace):
     return profile
 
 
-def build_service(profile, args: argparse.Namespace, *, sinks: list[Any] | None = None):
+def join_run_room(profile, args: argparse.Namespace):
+    """``edge run --room`` / ``[room] name``: join the room (claim a code) -> `edge.io.room.RoomLink`,
+    or None when the profile is not in a room."""
+    if not profile.room.name:
+        return None
+    if getattr(args, "no_zenoh", False):
+        raise ValueError("--room needs zenoh to find the other members, got --no-zenoh")
+    from edge.io.room import RoomLink
+
+    room = RoomLink(profile, explicit_device=bool(getattr(args, "device", None)))
+    print(f"edge run: {room.describe()}", flush=True)
+    return room
+
+
+def build_service(profile, args: argparse.Namespace, *, sinks: list[Any] | None = None, room: Any = None):
     """Sensor, publisher, recorder and `Service` for ``edge run`` arguments (see `register`).
 
     Order: sensor, service (decoder), zenoh session; the recording file is opened by `Service.run`
     only after warm-up and ``sensor.start()`` succeeded (``service.recorder_factory``), so a failed
-    start-up, or a stop during warm-up, never creates or truncates a file.  Start-up failures raise `StartupError`; whatever
-    was opened is closed again.
-    """
+    start-up, or a stop during warm-up, never creates or truncates a file.  Start-up failures raise
+    `StartupError`; whatever was opened is closed again.
+
+    room: a joined `edge.io.room.RoomLink` (``edge run --room``): the member profile is used, the
+    simulated sensors render the other members' light, the publisher shares the room's session and
+    the room is the service's last sink (its shutdown leaves the room)."""
     from edge.runtime.service import Service
     from edge.sensors import open_sensor
 
-    sensor = open_sensor(profile, args.sensor, replay_path=args.replay, max_speed=args.max_speed,
-                         poses=args.poses, interference=getattr(args, "interference", False))
+    if room is not None:
+        profile = room.profile
+        sinks = list(sinks or []) + [room]  # closed with the sinks if anything below fails
+    extra = {"room": room.claim} if room is not None else {}
+    try:
+        sensor = open_sensor(profile, args.sensor, replay_path=args.replay, max_speed=args.max_speed,
+                             poses=args.poses, interference=getattr(args, "interference", False), **extra)
+    except BaseException:
+        if room is not None:
+            room.close()  # leave the room: the code is free again
+        raise
     if args.sensor == "replay" or (args.sensor is None and profile.sensor.backend == "replay"):
         profile = sensor.profile  # decode with the recorded profile
     sinks = list(sinks or [])
@@ -162,7 +197,7 @@ def build_service(profile, args: argparse.Namespace, *, sinks: list[Any] | None 
         service = Service(profile, sensor, sinks=sinks, queue_capacity=args.queue)
         zenoh_sink = None
         if not args.no_zenoh:
-            zenoh_sink = _zenoh_sink(profile, service)
+            zenoh_sink = _zenoh_sink(profile, service, session=room.session if room is not None else None)
             service.sinks.append(zenoh_sink)
         if profile.ros.enabled:
             from edge.runtime.ros_sink import RosSink
@@ -174,6 +209,10 @@ def build_service(profile, args: argparse.Namespace, *, sinks: list[Any] | None 
             from edge.runtime.foxglove_sink import FoxgloveSink
 
             service.sinks.append(FoxgloveSink(profile, port=args.foxglove))
+        if room is not None:  # the room leaves last (after the publisher that shares its session)
+            service.sinks.remove(room)
+            service.sinks.append(room)
+            room.attach(service)
         if args.record:
             service.recorder_factory = _recorder_factory(args, profile, sensor)
     except BaseException:
@@ -204,7 +243,7 @@ def _recorder_factory(args: argparse.Namespace, profile, sensor):
     return make
 
 
-def _zenoh_sink(profile, service):
+def _zenoh_sink(profile, service, session=None):
     """The zenoh sink, with endpoint checks and one-line errors; warns about unreachable peers."""
     import zenoh
 
@@ -217,7 +256,7 @@ def _zenoh_sink(profile, service):
     except ValueError as exc:
         raise StartupError(str(exc)) from None
     try:
-        sink = ZenohSink(profile, service)
+        sink = ZenohSink(profile, service, session=session)
     except zenoh.ZError as exc:
         raise StartupError(describe_zenoh_error(exc, z)) from None
     for endpoint, reason in unreachable(z.connect):
@@ -304,7 +343,7 @@ def _run_service(args: argparse.Namespace, holder: dict[str, Any], received: lis
     if received:
         return None, None
     console = ConsoleSink(bar=args.bar, total=args.stacks, quiet=args.quiet)
-    service = build_service(profile, args, sinks=[console])
+    service = build_service(profile, args, sinks=[console], room=join_run_room(profile, args))
     holder["service"] = service
     try:
         if received:

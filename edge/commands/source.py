@@ -16,6 +16,8 @@ from ..codes.source import PAPER_CODES, correlation_report, family, source_code,
 
 
 def _codes(args: argparse.Namespace) -> int:
+    if args.table or args.room_family:
+        return _room_codes(args)
     if args.family:
         n, length = args.family
         codes = list(family(n, length, args.kind))
@@ -25,6 +27,28 @@ def _codes(args: argparse.Namespace) -> int:
     worst = max((worst_interference(a, b, kind=args.kind) for a in codes for b in codes if a is not b), default=0.0)
     print(f"worst unsynchronised interference in the set: {worst:.3f} "
           f"(the matched-filter threshold must exceed it)")
+    return 0
+
+
+def _room_codes(args: argparse.Namespace) -> int:
+    from ..codes.source_room import format_table, guarantee, margin_table, room_family
+
+    if args.room_family:
+        n, length = args.room_family
+        fam = room_family(n, length, args.kind, args.stream)
+        g = guarantee(fam, power_ratio=args.power_ratio, kind=args.kind, stream=args.stream)
+        print(f"room family {n}x{length} ({args.kind}, {args.stream} foreign streams), each foreign device "
+              f"<= {args.power_ratio:g} x own:")
+        for c, fb, ob, th, m in zip(fam, g.false_bound, g.own_bound, g.threshold, g.margin):
+            print(f"  {c.string}  worst foreign sum {fb:+.3f}  worst own {ob:+.3f}  threshold {th:.3f}  margin {m:+.3f}")
+        print(f"guaranteed margin {g.guaranteed_margin:+.3f}; largest power ratio with a guarantee "
+              f"{g.max_power_ratio:.3f}")
+        return 0
+    lengths = tuple(int(v) for v in args.lengths.split(","))
+    ns = range(2, args.max_devices + 1)
+    print(f"kind={args.kind}, stream={args.stream} (exact worst case of the sum of N-1 foreign devices)")
+    print(format_table(margin_table(ns, lengths, power_ratio=args.power_ratio, kind=args.kind, stream=args.stream),
+                       power_ratio=args.power_ratio))
     return 0
 
 
@@ -66,6 +90,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     c.add_argument("codes", nargs="*", help=f"bit strings or paper names ({', '.join(PAPER_CODES)})")
     c.add_argument("--family", nargs=2, type=int, metavar=("N", "L"), help="search N codes of length L")
     c.add_argument("--kind", choices=("frame", "event"), default="frame")
+    c.add_argument("--table", action="store_true",
+                   help="N x L table of guaranteed margins under the SUM of N-1 foreign devices "
+                        "(room families, no coding, time-division)")
+    c.add_argument("--room-family", nargs=2, type=int, metavar=("N", "L"),
+                   help="room family of N codes of length L and its exact worst case under the sum")
+    c.add_argument("--stream", choices=("aperiodic", "periodic"), default="aperiodic",
+                   help="foreign devices send on/off symbols (aperiodic: DLP, curtains) or repeat their code "
+                        "(periodic: dot projectors) (default aperiodic)")
+    c.add_argument("--power-ratio", type=float, default=1.0, metavar="P",
+                   help="each foreign device at most P x as bright as the own one (default 1)")
+    c.add_argument("--lengths", default="4,6,8,10,12", metavar="L,L,...", help="code lengths of --table")
+    c.add_argument("--max-devices", type=int, default=16, metavar="N", help="largest N of --table (default 16)")
     c.set_defaults(func=_codes)
     e = sub.add_parser("event-demo", help="event-camera SL with an interfering dot projector")
     e.add_argument("--size", default="320x240")

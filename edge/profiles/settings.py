@@ -90,6 +90,12 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     router = "tcp/localhost:7447"         # the rmw_zenohd router to connect to
     node = ""                             # ROS node name ("" = device name with '-' -> '_')
 
+    [room]                                # several devices in one room (edge.io.room, README)
+    name = ""                             # room name ("" = alone); `edge run --room NAME`
+    family_size = 4                       # codes in the room's source-code family = most devices
+    code_length = 8                       # L of the family's codes (frame rate / L)
+    settle_s = 0.5                        # seconds to wait for the other members' claims
+
     [sim]
     scene = "steps"                       # edge.sim.make_scene name (edge.sim.scene_names())
     seed = 0
@@ -122,6 +128,7 @@ __all__ = [
     "PointsSettings",
     "RosSettings",
     "OakSettings",
+    "RoomSettings",
     "build_profile",
     "profile_to_dict",
     "DECODER_METHODS",
@@ -301,6 +308,14 @@ class RosSettings:
 
 
 @dataclass(frozen=True)
+class RoomSettings:
+    name: str = _f("", pattern=r"(" + _KEY_CHUNK + r")?")
+    family_size: int = _f(4, lo=1, hi=16)
+    code_length: int = _f(8, lo=4, hi=16)
+    settle_s: float = _f(0.5, lo=0.0, hi=30.0)
+
+
+@dataclass(frozen=True)
 class SimSettings:
     scene: str = _f("steps", pattern=_NAME)
     seed: int = _f(0, lo=0, hi=2**63 - 1)
@@ -331,6 +346,7 @@ class Profile:
     points: PointsSettings = _f(PointsSettings())
     ros: RosSettings = _f(RosSettings())
     oak: OakSettings = _f(OakSettings())
+    room: RoomSettings = _f(RoomSettings())
     source: str = field(default="<dict>", compare=False, metadata={"internal": True})
 
 

@@ -158,6 +158,9 @@ class DepthPipeline:
                             if profile.code.source else None)
         if self.source_bits is not None and self.source_bits.all():
             self.source_bits = None  # an all-ones code ("1", "11"...) is no spreading at all
+        #: source codes of the other devices in the room (set by ``edge run --room``): when given, the
+        #: matched filter is the joint decorrelating one (`edge.source.joint`) instead of `despread`
+        self.foreign_sources: tuple[str, ...] = ()
 
     # -- stages ---------------------------------------------------------------------------
     def despread(self, images: np.ndarray) -> np.ndarray:
@@ -168,6 +171,11 @@ class DepthPipeline:
         """
         if self.source_bits is None:
             return images
+        if self.foreign_sources:
+            from edge.source.joint import joint_despread
+
+            amplitude = joint_despread(images, self.profile.code.source, self.foreign_sources).amplitude
+            return np.clip(amplitude / np.float32(self.full_scale), 0.0, 1.0, dtype=np.float32)
         from edge.source.matched_filter import despread
 
         amplitude = despread(images, self.profile.code.source).frames

@@ -17,7 +17,7 @@ from .pipeline import DepthResult
 class ZenohSink:
     """Publishes every `DepthResult` and status dict.  ``service`` may be None (replay --publish)."""
 
-    def __init__(self, profile, service: Any = None) -> None:
+    def __init__(self, profile, service: Any = None, *, session: Any = None) -> None:
         from edge.io.zenoh import DepthPublisher
 
         from edge.io.ros import frame_ids
@@ -25,7 +25,7 @@ class ZenohSink:
         on_update = service.update_config if service is not None else _reject_updates
         on_reject = getattr(service, "count_config_rejection", None)  # rejections of the zenoh layer
         self.profile = profile
-        self.publisher = DepthPublisher(profile, on_update=on_update, on_reject=on_reject)
+        self.publisher = DepthPublisher(profile, on_update=on_update, on_reject=on_reject, session=session)
         self.frame_id = frame_ids(profile.zenoh.device)["optical"]
         self.sequence = 0
 

@@ -123,6 +123,8 @@ class Service:
         self._sensor_started = False
         #: called by `run` after the sensor started, when ``recorder`` is None (``edge run --record``)
         self.recorder_factory: Callable[[], Any] | None = None
+        #: callables returning extra status fields (e.g. the room claim: room, code, members)
+        self.extra_status: list[Callable[[], dict[str, Any]]] = []
 
     # -- control ------------------------------------------------------------------------------
     def stop(self) -> None:
@@ -178,6 +180,7 @@ class Service:
         """Count a config update rejected before it reached `update_config` (the zenoh layer)."""
         with self._lock:
             self.counters.config_rejected += 1
+
     def _check_warm(self, old, new) -> None:
         """ConfigRejected when ``new`` needs kernels that are not compiled (see `edge.runtime.warmup`)."""
         if not self.warm_variants:
@@ -218,6 +221,17 @@ class Service:
         if errors:
             raise errors[0]
         return self.warm_up_report.done and not self._stop.is_set()
+
+    def switch_profile(self, new, pipeline=None) -> None:
+        """Apply a profile chosen by the service itself (a changed room claim: another source code or
+        the other members' codes) between stacks, with ``pipeline`` (default: built from ``new``); the
+        stack schedule must stay the same.  Not for user updates (those go through `update_config`)."""
+        pipeline = pipeline if pipeline is not None else self.pipeline_factory(new)
+        if not np.array_equal(np.asarray(pipeline.schedule), np.asarray(self.pipeline.schedule)):
+            raise ValueError(f"profile switch would change the stack schedule of {self.profile.name!r}")
+        with self._lock:
+            self._pending_profile = (new, pipeline, ["room"])  # budget-checked like a live change
+            self.profile = new
 
     # -- threads ------------------------------------------------------------------------------
     def _capture_loop(self) -> None:
@@ -400,6 +414,7 @@ class Service:
             "errors": self.counters.last_error or self._recorder_error(),
             **{k: v for k, v in self.pipeline_stats.items() if k not in ("stacks_decoded",)},
             **self._camera_status(),
+            **{k: v for f in self.extra_status for k, v in f().items()},
         }
 
     def _sensor_device(self) -> dict[str, Any]:
@@ -453,6 +468,7 @@ class Service:
         self.pipeline = self.pipeline_factory(new)
         self.profile = new
         self.geometry_source = "device calibration"
+
     def _recorder_error(self) -> str:
         err = getattr(self.recorder, "error", "") if self.recorder is not None else ""
         return f"recording: {err}" if err else ""

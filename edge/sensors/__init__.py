@@ -16,14 +16,16 @@ BACKENDS = ("sim", "replay", "oak", "event")
 
 def open_sensor(profile, backend: str | None = None, *, replay_path: str | None = None, max_speed: bool = False,
                 stacks: int | None = None, poses: int = 0, interference: bool = False, first_stack: int = 0,
-                **options: Any) -> Sensor:
+                room: Any = None, **options: Any) -> Sensor:
     """The backend named ``backend`` (default ``profile.sensor.backend``) configured from ``profile``.
 
     replay_path: MCAP file for ``replay`` (default ``profile.sensor.replay_path``); max_speed: no
     real-time pacing (sim, event, replay); stacks: end after this many stacks (sim, event); poses:
     pre-rendered motion poses (0 = live); first_stack: id (scene time) of the first simulated
     stack; interference: the simulated event / curtain device gets an
-    unsynchronised second device next to it.
+    unsynchronised second device next to it; room: the room claim (`edge.io.room.RoomClaim` or
+    `edge.sensors.room_model.StaticRoom`): the simulated sensors render every other member's light
+    (`edge.sensors.room_model`).
 
     ``sim`` picks the simulator that fits the profile's projector: `SimSensor` (columns),
     `DotsSimSensor` (dots; a stand-in for the OAK's IR dot projector), `CurtainSimSensor` (line);
@@ -38,15 +40,17 @@ def open_sensor(profile, backend: str | None = None, *, replay_path: str | None 
         if kind == "dots":
             from .dots import DotsSimSensor
 
-            return DotsSimSensor(profile, stacks=stacks, max_speed=max_speed, poses=poses, first_stack=first_stack)
+            return DotsSimSensor(profile, stacks=stacks, max_speed=max_speed, poses=poses, first_stack=first_stack,
+                                 room=room)
         if kind == "line":
             from .curtain import CurtainSimSensor
 
             return CurtainSimSensor(profile, stacks=stacks, max_speed=max_speed, poses=poses,
-                                    first_stack=first_stack, interference=interference)
+                                    first_stack=first_stack, interference=interference, room=room)
         from .sim import SimSensor
 
-        return SimSensor(profile, stacks=stacks, max_speed=max_speed, poses=poses, first_stack=first_stack)
+        return SimSensor(profile, stacks=stacks, max_speed=max_speed, poses=poses, first_stack=first_stack,
+                         room=room)
     if backend == "replay":
         from .replay import ReplaySensor
 
@@ -64,7 +68,7 @@ def open_sensor(profile, backend: str | None = None, *, replay_path: str | None 
         from .event import EventSimSensor
 
         return EventSimSensor(profile, stacks=stacks, max_speed=max_speed, poses=poses,
-                              first_stack=first_stack, interference=interference)
+                              first_stack=first_stack, interference=interference, room=room)
     raise ValueError(f"unknown sensor backend {backend!r}; expected one of {', '.join(BACKENDS)}")
 
 

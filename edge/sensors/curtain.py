@@ -44,7 +44,7 @@ class CurtainSimSensor(PacedSensor):
     of `CURTAINS` so that a cached scan always belongs to the curtain its stack id names."""
 
     def __init__(self, profile, *, stacks: int | None = None, max_speed: bool = False, poses: int = 0,
-                 first_stack: int = 0, interference: bool = False) -> None:
+                 first_stack: int = 0, interference: bool = False, room=None) -> None:
         if profile.projector.kind != "line":
             raise ValueError(f"the curtain sim sensor needs projector.kind = 'line', profile {profile.name!r} "
                              f"has {profile.projector.kind!r}")
@@ -53,6 +53,9 @@ class CurtainSimSensor(PacedSensor):
         cam = profile.camera
         self.code = src
         self.interference = bool(interference)
+        from .room_model import RoomLight
+
+        self.room = RoomLight(profile, room) if room is not None else None
         self.info = SensorInfo(
             name="sim-curtain", width=cam.width, height=cam.height, bits=cam.bits,
             fps=0.0 if max_speed else cam.rate_hz, n_code_frames=1, source_length=L, layout="slots",
@@ -68,7 +71,18 @@ class CurtainSimSensor(PacedSensor):
 
         g = self.geometry
         power = float(self.profile.sim.projector)
-        devices = [CurtainDevice(self.code, g.baseline_m, float(curtain_disparity(self.profile, stack)), 0.0, power)]
+        code = self.room.own_code() if self.room is not None else self.code
+        devices = [CurtainDevice(code, g.baseline_m, float(curtain_disparity(self.profile, stack)), 0.0, power)]
+        if self.room is not None:
+            # every other member of the room: its laser from its baseline, scanning its own curtain
+            # (half a sweep away from mine), at its room-clock offset (fractional slots) and power
+            t0 = float(stack) * self.info.width * len(self.code)
+            for k, f in enumerate(self.room.foreign()):
+                b = f.baseline_factor * g.baseline_m
+                d_f = curtain_disparity(self.profile, stack + CURTAINS // 2 + k)
+                z_f = g.focal_px * g.baseline_m / (d_f + g.doffs)
+                devices.append(CurtainDevice(f.code, b, g.focal_px * b / z_f - g.doffs,
+                                             f.offset_at(t0) % len(f.code), power * f.power))
         if self.interference:
             # a second device at 1.6x the baseline, its laser crossing the scene half a sweep away
             b2 = 1.6 * g.baseline_m

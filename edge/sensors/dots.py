@@ -56,7 +56,10 @@ class DotsSimSensor(PacedSensor):
     """
 
     def __init__(self, profile, *, stacks: int | None = None, max_speed: bool = False, poses: int = 0,
-                 first_stack: int = 0) -> None:
+                 first_stack: int = 0, room=None) -> None:
+        if room is not None:
+            raise ValueError(f"profile {profile.name!r}: the room simulator covers event-dots, light-curtain and "
+                             "column (DLP) profiles; a frame-camera dot sensor cannot join a simulated room yet")
         if profile.projector.kind != "dots":
             raise ValueError(f"the dots sim sensor needs projector.kind = 'dots', profile {profile.name!r} has "
                              f"{profile.projector.kind!r}")

@@ -54,7 +54,7 @@ class EventSimSensor(PacedSensor):
     """
 
     def __init__(self, profile, *, stacks: int | None = None, max_speed: bool = False, poses: int = 0,
-                 first_stack: int = 0, interference=False, sensor: dict | None = None) -> None:
+                 first_stack: int = 0, interference=False, sensor: dict | None = None, room=None) -> None:
         from edge.source.event_sl import Interferer
         from edge.source.events import EventSensor
 
@@ -75,6 +75,10 @@ class EventSimSensor(PacedSensor):
         cam = profile.camera
         self.dvs = EventSensor(cam.width, cam.height, **(sensor or {}))
         self.interferer = (Interferer() if interference is True else interference) or None
+        from .room_model import RoomLight
+
+        self.room = RoomLight(profile, room) if room is not None else None
+        self._interferers = [self.interferer] if self.interferer is not None else []
         self.offset_us = window_offset_us(self.dvs.latency_us, self.slot_us)
         self.info = SensorInfo(
             name="event", width=cam.width, height=cam.height, bits=cam.bits,
@@ -103,26 +107,42 @@ class EventSimSensor(PacedSensor):
         from edge.source.event_sl import foreign_irradiance
 
         e_own = projector_irradiance(scene, self.pattern[None].astype(np.float32), CameraModel())[0]
-        e_f = None
-        if self.interferer is not None:
-            i = self.interferer
+        e_f = []
+        for i in self._interferers:
             dots = random_dots(self.info.width, self.info.height, density=i.dot_density, seed=i.seed)
-            e_f = foreign_irradiance(scene, dots, i.baseline_m)
+            e_f.append(foreign_irradiance(scene, dots, i.baseline_m))
         return e_own, e_f
+
+    def _room_interferers(self, stack: int) -> list:
+        """The interferers of this stack: ``interference`` and every other member of the room (its
+        code, its slot length from the room clock's drift, its offset, power and dot pattern)."""
+        from edge.sensors.dots import DOT_DENSITY
+        from edge.source.event_sl import Interferer
+
+        out = [self.interferer] if self.interferer is not None else []
+        if self.room is not None:
+            self.bits = np.array([c == "1" for c in self.room.own_code()], dtype=np.uint8)
+            t0 = float(self.period_start_us(stack)) / self.slot_us
+            for f in self.room.foreign():
+                out.append(Interferer(code=f.code, slot_us=self.slot_us * (1.0 + f.drift),
+                                      phase_us=(f.offset_at(t0) % len(f.code)) * self.slot_us,
+                                      baseline_m=f.baseline_factor * self.geometry.baseline_m,
+                                      power=float(self.profile.sim.projector) * f.power, dot_density=DOT_DENSITY,
+                                      seed=f.seed))
+        return out
 
     def _render(self, stack: int, rng: np.random.Generator) -> list[np.ndarray]:
         """L event arrays (EVENT_DTYPE, ``t`` relative to the period start T_k) of the slices of ``stack``."""
         from edge.source.events import simulate_events
 
         scene = self.scene(stack)
-        e_own, e_f = self._irradiance(scene)
+        self._interferers = self._room_interferers(stack)
+        e_own, e_fs = self._irradiance(scene)
         slot, L, P = self.slot_us, self.bits.size, self.period_us
         t_k = self.period_start_us(stack)
         start, end = t_k - slot, t_k + P  # pre-roll slot, then the period
         times = [t_k + slot * np.arange(-1, L, dtype=np.int64)]
-        i = self.interferer
-        if i is not None:
-            fbits = np.array([c == "1" for c in i.code], dtype=np.float64)
+        for i in self._interferers:
             m = np.arange(np.floor((start - i.phase_us) / i.slot_us), np.ceil((end - i.phase_us) / i.slot_us) + 1)
             edges = np.floor(i.phase_us + m * i.slot_us).astype(np.int64)
             times.append(edges[(edges > start) & (edges < end)])
@@ -131,7 +151,8 @@ class EventSimSensor(PacedSensor):
         amb, power = np.float32(self.profile.sim.ambient), np.float32(self.profile.sim.projector)
         albedo = scene.albedo.astype(np.float32)
         inten = albedo[None] * (power * own[:, None, None] * e_own[None] + amb)
-        if i is not None:
+        for i, e_f in zip(self._interferers, e_fs):
+            fbits = np.array([c == "1" for c in i.code], dtype=np.float64)
             s_f = fbits[np.floor((t - i.phase_us) / i.slot_us).astype(np.int64) % fbits.size].astype(np.float32)
             inten += (albedo * np.float32(i.power) * e_f)[None] * s_f[:, None, None]
         events = simulate_events(inten, t, self.dvs, rng=rng, end_us=int(end))

@@ -215,8 +215,12 @@ class SimSensor(PacedSensor):
     """
 
     def __init__(self, profile, *, stacks: int | None = None, max_speed: bool = False, poses: int = 0,
-                 first_stack: int = 0) -> None:
+                 first_stack: int = 0, room=None) -> None:
         from edge.codes import get_code
+
+        from .room_model import RoomLight
+
+        self.room = RoomLight(profile, room) if room is not None else None
 
         if profile.projector.kind != "columns":
             raise ValueError(f"the sim sensor renders 'columns' projectors, profile {profile.name!r} has "
@@ -240,14 +244,52 @@ class SimSensor(PacedSensor):
         self._blacks: dict[int, np.ndarray] = {}
         self._init_stream(profile, stacks=stacks, max_speed=max_speed, poses=poses, first_stack=first_stack)
 
-    def _capture(self, scene, rows: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    def _capture(self, scene, rows: np.ndarray, rng: np.random.Generator, extra=None) -> np.ndarray:
         from edge.sim import capture
 
-        return capture(scene, rows, self.camera, rng=rng, exposure=self.frame_exposure)
+        return capture(scene, rows, self.camera, rng=rng, exposure=self.frame_exposure, extra_irradiance=extra)
 
     def _render(self, stack: int, rng: np.random.Generator) -> np.ndarray:
-        """(frames_per_stack, H, W) camera images of ``stack``."""
-        return self._capture(self.scene(stack), self.rows, rng)
+        """(frames_per_stack, H, W) camera images of ``stack`` (plus the room's other projectors)."""
+        scene = self.scene(stack)
+        extra = None
+        if self.room is not None:
+            own = self.room.own_code()
+            if own != self.source:  # the claim changed: project the new code from this stack on
+                self.source = own
+                self.rows = stack_projector_rows(self.code, self.profile.projector.width,
+                                                 self.profile.projector.stripe, own)
+            extra = self.foreign_irradiance(stack, scene)
+        return self._capture(scene, self.rows, rng, extra)
+
+    def foreign_irradiance(self, stack: int, scene) -> np.ndarray | None:
+        """float32 (frames_per_stack, H, W) light of the room's other DLP projectors in my slots.
+
+        Every other member projects its own stack (this profile's code, spread with its family
+        code) from its baseline at its room-clock offset (`edge.sensors.room_model`); my slot
+        integrates its slots at two sub-samples (fractional offsets)."""
+        foreign = self.room.foreign()
+        if not foreign:
+            return None
+        g = self.geometry
+        F = len(self.schedule)
+        h, w = self.info.height, self.info.width
+        wp = int(self.profile.projector.width)
+        x = np.arange(w, dtype=np.float64)[None, :]
+        t0 = float(stack) * F
+        e = np.zeros((F, h, w), np.float32)
+        for f in foreign:
+            rows_f = stack_projector_rows(self.code, wp, self.profile.projector.stripe, f.code)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                col = x - (g.focal_px * f.baseline_factor * g.baseline_m / scene.depth_m.astype(np.float64) - g.doffs)
+            ok = np.isfinite(col) & (col >= 0) & (col <= wp - 1)
+            ci = np.where(ok, np.rint(np.where(ok, col, 0)), 0).astype(np.int64)
+            tau = f.offset_at(t0)
+            for i in range(F):
+                for sub in (0.25, 0.75):
+                    idx = int(np.floor(t0 + i + sub - tau)) % F
+                    e[i] += (0.5 * f.power) * np.where(ok, rows_f[idx][ci], 0.0).astype(np.float32)
+        return e
 
     def render_stack(self, stack: int):
         out = super().render_stack(stack)

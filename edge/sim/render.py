@@ -147,14 +147,16 @@ def has_global_illumination(scene: Scene) -> bool:
 
 def capture(scene: Scene, projector_frames: np.ndarray, camera: CameraModel, *,
             rng: np.random.Generator | int | None, exposure: float | None = None,
-            rows: np.ndarray | None = None) -> np.ndarray:
+            rows: np.ndarray | None = None, extra_irradiance: np.ndarray | None = None) -> np.ndarray:
     """Camera frames (m, H, W) of ``scene`` lit by ``projector_frames`` (eq. 1 plus noise and ADC).
 
     exposure: per-frame exposure (relative units), default ``camera.exposure``; light and ambient
     scale linearly with it.  rng: numpy Generator (or int seed) for the noise.  rows: optional
     camera rows to render (int array); the result is then (m, len(rows), W).  Only exact without
     global illumination (a pixel's light then depends on its own projector row alone): a scene
-    with scattering or inter-reflection raises ValueError.
+    with scattering or inter-reflection raises ValueError.  extra_irradiance: optional float32
+    (m, H, W) light of other projectors (same units as the own projector's irradiance, e.g. other
+    devices in the room), added before noise and ADC (only its ``rows`` are used with ``rows``).
     Returns uint8 frames for 8-bit cameras, uint16 (0..2**bits-1) otherwise.
     """
     t = camera.exposure if exposure is None else exposure
@@ -184,11 +186,15 @@ def capture(scene: Scene, projector_frames: np.ndarray, camera: CameraModel, *,
         else:
             e = _warp_nearest_small(patterns, np.ascontiguousarray(scene.column_int[r]), row_of)
         albedo = np.ascontiguousarray(albedo[r])
+        if extra_irradiance is not None:
+            e = np.ascontiguousarray(e + np.asarray(extra_irradiance, np.float32)[:, r])
         if e.size <= SMALL_RENDER:
             normals = gen.standard_normal(e.shape, dtype=np.float32)
             return _expose_numpy(e, albedo, float(t * camera.projector), float(t * camera.ambient), normals,
                                  float(camera.sigma_r**2), float(camera.sigma_s**2), float(camera.levels),
                                  np.uint8 if camera.bits == 8 else np.uint16)
+    if rows is None and extra_irradiance is not None:
+        e = np.ascontiguousarray(e + np.asarray(extra_irradiance, np.float32))
     normals = gen.standard_normal(e.shape, dtype=np.float32)
     out = np.empty(e.shape, dtype=np.uint8 if camera.bits == 8 else np.uint16)
     expose(e, albedo, float(t * camera.projector), float(t * camera.ambient), normals,

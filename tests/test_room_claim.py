@@ -1,0 +1,134 @@
+"""Room code claim: pure rules (tie-break, capacity, names) and real zenoh sessions on loopback."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+
+import pytest
+
+from edge.runtime.room import Member, RoomFull, RoomNameTaken, parse_token, resolve, token_key
+
+zenoh = pytest.importorskip("zenoh")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_rules_tie_break_capacity_and_names():
+    a, b, c = "0a", "0b", "0c"
+    # three members that started at the same instant all claimed code 0: only the smallest zid keeps it
+    same = [Member("dev", 0, a), Member("dev", 0, b), Member("dev", 0, c)]
+    assert resolve("r", a, "dev", same, 3, current=same[0]) == Member("dev", 0, a)
+    mb = resolve("r", b, "dev", same, 3, current=same[1])
+    assert mb.code == 1 and mb.device == "dev-2"
+    # capacity: the largest zid is refused, naming the room and members
+    with pytest.raises(RoomFull, match="room 'r' is full: its family has 2 codes"):
+        resolve("r", c, "dev", [Member("dev", 0, a), Member("dev-2", 1, b)], 2)
+    # a newcomer never takes a held code, even with a smaller zid; a freed code is reused
+    assert resolve("r", "01", "x", [Member("y", 0, a), Member("z", 2, b)], 3).code == 1
+    # explicit names are never renamed
+    with pytest.raises(RoomNameTaken, match="device name 'cam' is already in room 'r'"):
+        resolve("r", b, "cam", [Member("cam", 0, a)], 3, explicit=True)
+    with pytest.raises(RoomNameTaken):  # a newcomer never displaces a running member, whatever the zids
+        resolve("r", a, "cam", [Member("cam", 0, b)], 3, explicit=True)
+    # two that declared the same explicit name at once: the smaller zid keeps it
+    assert resolve("r", a, "cam", [Member("cam", 1, b)], 3, explicit=True, current=Member("cam", 0, a)).device == "cam"
+    key = token_key("sl", "r", Member("cam-2", 3, "abc"))
+    assert key == "sl/room/r/cam-2/3/abc" and parse_token(key, "sl", "r") == Member("cam-2", 3, "abc")
+    for bad in ("sl/room/r/cam/x/abc", "sl/room/r/cam/1", "sl/room/other/cam/1/abc", "sl/room/r/c m/1/z"):
+        assert parse_token(bad, "sl", "r") is None
+
+
+def _session(listen, connect=()):
+    from edge.io.zenoh import make_config
+
+    return zenoh.open(make_config(listen=[listen], connect=list(connect)))
+
+
+def test_claims_over_zenoh_distinct_full_and_freed():
+    from edge.io.room import RoomClaim, room_members
+
+    eps = [f"tcp/127.0.0.1:{free_port()}" for _ in range(4)]
+    sessions = [_session(eps[0])] + [_session(eps[i], eps[:i]) for i in range(1, 4)]
+    claims, errors = [], []
+    try:
+        claims = [RoomClaim(s, prefix="sl", room="lab", device="cam", capacity=3, settle_s=0.4) for s in sessions[:3]]
+        threads = [threading.Thread(target=lambda c=c: c.join()) for c in claims]  # simultaneous start
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(20)
+        codes = sorted(c.me.code for c in claims)
+        names = sorted(c.me.device for c in claims)
+        assert codes == [0, 1, 2] and len(set(names)) == 3, (codes, names)
+        time.sleep(0.5)
+        assert [m.code for m in room_members(sessions[3], "sl", "lab")] == [0, 1, 2]
+        fourth = RoomClaim(sessions[3], prefix="sl", room="lab", device="cam", capacity=3, settle_s=0.4)
+        with pytest.raises(RoomFull, match="room 'lab' is full.*cam"):
+            fourth.join()
+        fourth.close()
+        changes = []
+        claims[0].on_change = lambda me, members: changes.append(len(members))
+        freed = claims[1].me.code
+        claims[1].close()
+        sessions[1].close()  # the member's process goes away
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and len(claims[0].members()) != 2:
+            time.sleep(0.05)
+        assert len(claims[0].members()) == 2 and changes and changes[-1] == 2
+        again = RoomClaim(sessions[3], prefix="sl", room="lab", device="cam", capacity=3, settle_s=0.4)
+        assert again.join().code == freed
+        assert again.status()["code"] == freed and len(again.status()["members"]) == 3
+        again.close()
+    finally:
+        for c in claims:
+            c.close()
+        for s in sessions:
+            try:
+                s.close()
+            except Exception:
+                pass
+
+
+def test_running_member_moves_when_an_outranking_claim_appears():
+    """A conflict seen while running (e.g. a healed network partition): the larger zid re-claims and
+    tells the service (on_change); the new token replaces the old one."""
+    from edge.io.room import RoomClaim, room_members
+
+    eps = [f"tcp/127.0.0.1:{free_port()}" for _ in range(2)]
+    a, b = _session(eps[0]), _session(eps[1], eps[:1])
+    claim = RoomClaim(a, prefix="sl", room="lab", device="cam", capacity=3, settle_s=0.3)
+    try:
+        assert claim.join().code == 0
+        changes = []
+        claim.on_change = lambda me, members: changes.append(me.code)
+        ghost = b.liveliness().declare_token("sl/room/lab/ghost/0/0")  # zid 0 outranks every session
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and claim.me.code == 0:
+            time.sleep(0.05)
+        assert claim.me.code == 1 and changes and changes[-1] == 1 and claim.claim_changes == 1
+        time.sleep(0.3)
+        assert sorted((m.device, m.code) for m in room_members(b, "sl", "lab")) == [("cam", 1), ("ghost", 0)]
+        ghost.undeclare()
+    finally:
+        claim.close()
+        a.close()
+        b.close()
+
+
+def test_service_switch_profile_keeps_the_schedule():
+    from _service_helpers import load_test_profile
+    from edge.runtime.service import Service
+    from edge.sensors.sim import SimSensor
+
+    p = load_test_profile(code={"source": "00110101"})
+    service = Service(p, SimSensor(p, stacks=1, max_speed=True))
+    service.switch_profile(load_test_profile(code={"source": "00011001"}))
+    assert service.profile.code.source == "00011001"
+    with pytest.raises(ValueError, match="stack schedule"):
+        service.switch_profile(load_test_profile(code={"source": "0011"}))
