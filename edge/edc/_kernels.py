@@ -17,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from edge.codes.search import _popcount  # the one njit popcount (Kernighan) of the package below
+
 
 @njit(cache=True)
 def gather_extremes(frames: np.ndarray, ys: np.ndarray, xs: np.ndarray, n: int):
@@ -64,15 +66,6 @@ def pack_words_at(frames: np.ndarray, start: int, n: int, ys: np.ndarray, xs: np
 
 
 @njit(cache=True)
-def _popcount(v: np.int64) -> int:
-    c = 0
-    while v:
-        v &= v - 1
-        c += 1
-    return c
-
-
-@njit(cache=True)
 def nearest_codewords(words: np.ndarray, codewords: np.ndarray) -> np.ndarray:
     """(P,) int32 index of the codeword nearest in Hamming distance (lowest index on ties)."""
     return nearest_codewords_distance(words, codewords)[0]
@@ -97,47 +90,41 @@ def nearest_codewords_distance(words: np.ndarray, codewords: np.ndarray):
     return out, dist
 
 
+@njit(cache=True, inline="always")
+def _supported(ref: np.ndarray, y: int, x: int, c: int, tolerance: int) -> bool:
+    """Column ``c`` at pixel (y, x) is supported by the column map ``ref`` (-1 = none): some
+    neighbour at dx = +-1 (dy in -1..1) has a column within ``tolerance``, or, when none of those
+    six has a column, the pixel above or below does."""
+    h, w = ref.shape
+    any_h = False
+    for yy in range(y - 1 if y > 0 else 0, (y + 1 if y < h - 1 else h - 1) + 1):
+        for xx in (x - 1, x + 1):
+            if 0 <= xx < w:
+                r = ref[yy, xx]
+                if r >= 0:
+                    any_h = True
+                    if r - c <= tolerance and c - r <= tolerance:
+                        return True
+    if any_h:
+        return False
+    for yy in (y - 1, y + 1):
+        if 0 <= yy < h:
+            r = ref[yy, x]
+            if r >= 0 and r - c <= tolerance and c - r <= tolerance:
+                return True
+    return False
+
+
 @njit(cache=True)
 def support_at(ys: np.ndarray, xs: np.ndarray, cols: np.ndarray, ref: np.ndarray, tolerance: int) -> np.ndarray:
     """(P,) bool: pixel (ys[p], xs[p]) with column cols[p] is supported by the column map ``ref``.
 
-    Same rule as `edge.edc.adaptive.supported`: some neighbour at dx = +-1 (dy in -1..1) has a
-    column within ``tolerance``, or, when none of those six has a column, the pixel above or below.
+    Same rule as `edge.edc.adaptive.supported` (`_supported`).
     """
-    h, w = ref.shape
     out = np.zeros(ys.size, dtype=np.bool_)
     for p in range(ys.size):
-        y, x, c = ys[p], xs[p], cols[p]
-        if c < 0:
-            continue
-        near_h = False
-        any_h = False
-        y0 = y - 1 if y > 0 else 0
-        y1 = y + 1 if y < h - 1 else h - 1
-        for yy in range(y0, y1 + 1):
-            if x > 0:
-                r = ref[yy, x - 1]
-                if r >= 0:
-                    any_h = True
-                    if r - c <= tolerance and c - r <= tolerance:
-                        near_h = True
-            if x < w - 1:
-                r = ref[yy, x + 1]
-                if r >= 0:
-                    any_h = True
-                    if r - c <= tolerance and c - r <= tolerance:
-                        near_h = True
-        if near_h:
-            out[p] = True
-        elif not any_h:
-            if y > 0:
-                r = ref[y - 1, x]
-                if r >= 0 and r - c <= tolerance and c - r <= tolerance:
-                    out[p] = True
-            if y < h - 1:
-                r = ref[y + 1, x]
-                if r >= 0 and r - c <= tolerance and c - r <= tolerance:
-                    out[p] = True
+        if cols[p] >= 0:
+            out[p] = _supported(ref, ys[p], xs[p], cols[p], tolerance)
     return out
 
 
@@ -312,36 +299,7 @@ def support_full(cand: np.ndarray, tolerance: int) -> np.ndarray:
     h, w = cand.shape
     out = np.zeros((h, w), dtype=np.bool_)
     for y in range(h):
-        y0 = y - 1 if y > 0 else 0
-        y1 = y + 1 if y < h - 1 else h - 1
         for x in range(w):
-            c = cand[y, x]
-            if c < 0:
-                continue
-            near_h = False
-            any_h = False
-            for yy in range(y0, y1 + 1):
-                if x > 0:
-                    r = cand[yy, x - 1]
-                    if r >= 0:
-                        any_h = True
-                        if r - c <= tolerance and c - r <= tolerance:
-                            near_h = True
-                if x < w - 1:
-                    r = cand[yy, x + 1]
-                    if r >= 0:
-                        any_h = True
-                        if r - c <= tolerance and c - r <= tolerance:
-                            near_h = True
-            if near_h:
-                out[y, x] = True
-            elif not any_h:
-                if y > 0:
-                    r = cand[y - 1, x]
-                    if r >= 0 and r - c <= tolerance and c - r <= tolerance:
-                        out[y, x] = True
-                if y < h - 1:
-                    r = cand[y + 1, x]
-                    if r >= 0 and r - c <= tolerance and c - r <= tolerance:
-                        out[y, x] = True
+            if cand[y, x] >= 0:
+                out[y, x] = _supported(cand, y, x, cand[y, x], tolerance)
     return out
