@@ -58,10 +58,12 @@ def test_every_shipped_profile_loads_and_names_a_simulator_scene():
 
 
 def _run_cli_service(name: str, stacks: int = 2, **extra):
+    # queue 8: a simulator at full speed on a loaded machine must not drop the first stacks (the
+    # queue drops the oldest), whose poses the assertions below were written for
     from edge.commands.run import build_service, load_run_profile
 
     args = argparse.Namespace(profile=name, sensor="sim", replay=None, record=extra.get("record"), max_speed=True,
-                              poses=0, queue=1, no_zenoh=True, listen=None, connect=None, interference=False)
+                              poses=0, queue=8, no_zenoh=True, listen=None, connect=None, interference=False)
     sink = Collect()
     service = build_service(load_run_profile(args), args, sinks=[sink])
     status = service.run(stacks=stacks)
