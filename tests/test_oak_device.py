@@ -14,7 +14,7 @@ import pytest
 import depthai as dai  # noqa: E402
 
 from _service_helpers import NumpyPipeline, load_test_profile  # noqa: E402
-from test_sensors_oak import FakeMono, _oak_profile  # noqa: E402
+from test_sensors_oak import FakeMono, _oak_profile, read_frames  # noqa: E402
 
 from edge.profiles import apply_update  # noqa: E402
 from edge.sensors.base import parse_projector_frame, stack_schedule  # noqa: E402
@@ -164,13 +164,8 @@ def test_oak_settings_come_from_the_profile_and_device_status_reports_diagnostic
                        max_frames=len(seqs))
     assert (sensor.emitters.dot_intensity, sensor.emitters.flood_intensity, sensor.emitters.lead_frames) == (0.4, 0.2, 3)
     sensor.start()
-    frames = []
     try:
-        t0 = time.time()
-        while len(frames) < len(seqs) and time.time() - t0 < 10:
-            f = sensor.read(0.5)
-            if f is not None:
-                frames.append(f)
+        frames = read_frames(sensor, len(seqs))
         status = sensor.device_status()
         sensor.apply_settings(apply_update(profile, {"oak": {"dot_intensity": 0.7}}).oak)
     finally:

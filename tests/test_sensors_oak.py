@@ -65,6 +65,17 @@ def test_stack_numbering_from_sequence():
     assert n.assign(17) == (2, WHITE)
 
 
+def read_frames(sensor, count: int, timeout_s: float = 10.0) -> list:
+    """Up to ``count`` frames read from a started sensor within ``timeout_s`` seconds."""
+    frames: list = []
+    t0 = time.time()
+    while len(frames) < count and time.time() - t0 < timeout_s:
+        f = sensor.read(0.5)
+        if f is not None:
+            frames.append(f)
+    return frames
+
+
 def _oak_profile():
     p = load_profile("sim-dlp")
     return apply_update(p, {"camera": {"width": W, "height": H}, "code": {"name": "gray-3"}, "projector": {"width": 8},
@@ -85,13 +96,8 @@ def test_oak_sensor_host_pipeline_end_to_end():
     sensor = OakSensor(profile, pipeline=pipeline, output_factory=lambda p: p.create(FakeMono).out,
                        emitter=emitter, max_frames=len(seqs))
     sensor.start()
-    frames = []
     try:
-        t0 = time.time()
-        while len(frames) < len(seqs) and time.time() - t0 < 10:
-            f = sensor.read(0.5)
-            if f is not None:
-                frames.append(f)
+        frames = read_frames(sensor, len(seqs))
     finally:
         sensor.stop()
     assert [f.sequence for f in frames] == seqs

@@ -157,14 +157,21 @@ def encode_header(*, width: int, height: int, encoding: str, timestamp_ns: int, 
                        "published_ns": time.time_ns()}).encode()
 
 
+def _json_attachment(attachment: bytes | None, what: str) -> Any:
+    """The parsed JSON of a sample's attachment; ValueError naming ``what`` if absent or not JSON."""
+    if not attachment:
+        raise ValueError(f"expected a JSON header attachment on the {what}, got none")
+    try:
+        return json.loads(attachment)
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"expected a JSON {what} header, got undecodable bytes ({exc})") from None
+
+
 def decode_header(attachment: bytes | None) -> dict[str, Any]:
     """Parse and check a sample header; ValueError with the reason if it is not one."""
-    if not attachment:
-        raise ValueError("expected a JSON header attachment on the sample, got none")
-    try:
-        header = json.loads(attachment)
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"expected a JSON header attachment, got undecodable bytes ({exc})") from None
+    header = _json_attachment(attachment, "sample")
+    if not isinstance(header, dict):
+        raise ValueError(f"expected a JSON object as the sample header, got {type(header).__name__}")
     missing = [k for k in ("width", "height", "encoding", "timestamp_ns", "sequence") if k not in header]
     if missing:
         raise ValueError(f"expected header keys width, height, encoding, timestamp_ns, sequence; missing {missing}")
@@ -185,12 +192,7 @@ def decode_image(payload: bytes, header: Mapping[str, Any]) -> np.ndarray:
 
 def decode_points(payload: bytes, attachment: bytes | None) -> tuple[np.ndarray, dict[str, Any]]:
     """((N, 3) float32 points in metres, header) of a ``sl/<device>/points`` sample."""
-    if not attachment:
-        raise ValueError("expected a JSON header attachment on the points sample, got none")
-    try:
-        header = json.loads(attachment)
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"expected a JSON points header, got undecodable bytes ({exc})") from None
+    header = _json_attachment(attachment, "points sample")
     if not isinstance(header, dict) or header.get("encoding") != "xyz32f" or not isinstance(header.get("count"), int):
         raise ValueError(f"expected a points header with encoding 'xyz32f' and an integer count, got {header!r}")
     n = header["count"]

@@ -152,7 +152,7 @@ class Service:
                 raise ConfigRejected(
                     f"cannot change {', '.join(frozen)} while running (live tables: {', '.join(LIVE_TABLES)})")
             self._check_warm(self.profile, new)
-            if "oak" in {k.split(".")[0] for k in changed_keys(self.profile, new)}:
+            if "oak" in {k.split(".")[0] for k in changed}:
                 apply = getattr(self.sensor, "apply_settings", None)
                 if apply is None:
                     raise ConfigRejected(f"sensor {self.sensor.info.name!r} has no OAK emitters to set")
@@ -164,7 +164,7 @@ class Service:
             raise
         change = {"time_ns": time.time_ns(), "keys": changed}
         with self._lock:
-            self._pending_profile = (new, pipeline, changed_keys(self.profile, new))
+            self._pending_profile = (new, pipeline, changed)
             self.profile = new
             self.counters.config_updates += 1
             self.last_config_change = change
