@@ -7,7 +7,7 @@ import pytest
 
 from edge.codes import get_code
 from edge.decode import Decoded, confidence_median, decode, order_prior
-from edge.decode import decoder
+from edge.decode.backends import cpu as cpu_backend
 from edge.decode.decoder import Q_SCALE
 from edge.decode.inputs import validate
 from edge.decode.kernels import LANES, METRIC_ML, METRIC_NORMALIZED
@@ -109,8 +109,8 @@ def test_fast_paths_equal_scalar_path(name, inverse):
              ("band", (True, -20, 40), 700)]
     for path, band, ncols in cases:
         kw = dict(metric=METRIC_ML, sigma_r=SR, sigma_s=SS, columns=ncols, band=band, stripe=1)
-        ref = decoder.search(st, code, path="scalar", **kw)
-        got = decoder.search(st, code, path=path, **kw)
+        ref = cpu_backend.search(st, code, path="scalar", **kw)
+        got = cpu_backend.search(st, code, path=path, **kw)
         assert got[3]["path"] == path
         for a, b in zip(ref[:3], got[:3]):
             np.testing.assert_array_equal(a, b, err_msg=f"{path} {band} {ncols}")
@@ -140,8 +140,8 @@ def test_band_fold_equals_band_scan(name):
                  ((True, 13, 70), code.size, 3)]
         for band, ncols, stripe in cases:
             kw = dict(metric=METRIC_ML, sigma_r=SR, sigma_s=SS, columns=ncols, band=band, stripe=stripe)
-            ref = decoder.search(st, code, path="band-scan", **kw)
-            got = decoder.search(st, code, path="band", **kw)
+            ref = cpu_backend.search(st, code, path="band-scan", **kw)
+            got = cpu_backend.search(st, code, path="band", **kw)
             assert got[3]["path"] == "band" and ref[3]["path"] == "band-scan"
             for a, b in zip(ref[:3], got[:3]):
                 np.testing.assert_array_equal(a, b, err_msg=f"{inverse} {band} {ncols} {stripe}")
@@ -159,8 +159,8 @@ def test_band_fold_wide_keys():
     st = validate(cap.frames, cap.white, cap.black, code)
     for sr, ss in ((1e-4, 0.0), (0.003, 0.01)):
         kw = dict(metric=METRIC_ML, sigma_r=sr, sigma_s=ss, columns=code.size, band=(True, -10, 60), stripe=1)
-        ref = decoder.search(st, code, path="band-scan", **kw)
-        got = decoder.search(st, code, path="band", **kw)
+        ref = cpu_backend.search(st, code, path="band-scan", **kw)
+        got = cpu_backend.search(st, code, path="band", **kw)
         for a, b in zip(ref[:3], got[:3]):
             np.testing.assert_array_equal(a, b, err_msg=f"{sr} {ss}")
         if sr == 1e-4:

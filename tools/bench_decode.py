@@ -8,7 +8,7 @@ sigma_r = 0.01, sigma_s = 0.03 (normalised units), uint8 frames.  Baseline: nump
 chunked matmul of the per-sample cost differences against all 1024 codewords + argmin (top-1
 only).  Everything runs in one process on the same input.
 
-Rows: "search" rows time the exact top-3 search alone (`edge.decode.decoder.search`, or the
+Rows: "search" rows time the exact top-3 search alone (`edge.decode.backends.cpu.search`, or the
 syndrome kernel for hard decoding): what issue 4 section 4 targets; the band is searched with
 the folded Walsh-Hadamard kernel (path "band") and, for comparison, the plain band scan
 ("band-scan"; both must agree exactly).  "decode()" rows time the public call, which adds the
@@ -41,8 +41,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from edge.codes import get_code  # noqa: E402
-from edge.decode import decode  # noqa: E402
-from edge.decode import decoder  # noqa: E402
+from edge.decode import DEFAULTS, decode  # noqa: E402
+from edge.decode.backends import cpu as cpu_backend  # noqa: E402
 from edge.decode.inputs import validate  # noqa: E402
 from edge.decode.kernels import METRIC_ML  # noqa: E402
 from edge.decode.synthetic import make_capture  # noqa: E402
@@ -137,9 +137,9 @@ def main(argv=None) -> int:
     report("baseline numpy matmul+argmin (top-1)", base, bfirst, bmed, bcpu)
 
     st = validate(fr, wh, bl, code)
-    kw = dict(metric=METRIC_ML, sigma_r=decoder.DEFAULTS["sigma_r"], sigma_s=decoder.DEFAULTS["sigma_s"],
+    kw = dict(metric=METRIC_ML, sigma_r=DEFAULTS["sigma_r"], sigma_s=DEFAULTS["sigma_s"],
               columns=code.size, stripe=1)
-    r, first, med, cpu = timed(lambda: decoder.search(st, code, band=(False, 0, 0), **kw), args.repeats)
+    r, first, med, cpu = timed(lambda: cpu_backend.search(st, code, band=(False, 0, 0), **kw), args.repeats)
     report("search: soft exact top-3 + confidence", r[0][..., 0], first, med, cpu, bmed)
     s = r[3]
     print(f"    path {s['path']}: codewords evaluated / pixel {s['evaluated'] / (h * w):.1f}; pixels needing "
@@ -147,15 +147,15 @@ def main(argv=None) -> int:
           f"{s['second_class_blocks'] / max(s['blocks'], 1):.4%} of {s['blocks']}", flush=True)
     print(f"    agreement with baseline argmin: {float((r[0][..., 0] == base).mean()):.6f}", flush=True)
     band = (True, min_d, max_d)
-    r, first, med, cpu = timed(lambda: decoder.search(st, code, band=band, **kw), args.repeats)
+    r, first, med, cpu = timed(lambda: cpu_backend.search(st, code, band=band, **kw), args.repeats)
     report(f"search: soft top-3, {args.band}-column band", r[0][..., 0], first, med, cpu, bmed)
     print(f"    path {r[3]['path']}: candidates / pixel {r[3]['evaluated'] / (h * w):.1f}; pixels redone with "
           f"64-bit keys {r[3].get('wide_key_pixels', 0)}", flush=True)
-    r2, first, med, cpu = timed(lambda: decoder.search(st, code, band=band, path="band-scan", **kw), args.repeats)
+    r2, first, med, cpu = timed(lambda: cpu_backend.search(st, code, band=band, path="band-scan", **kw), args.repeats)
     report(f"search: soft top-3, {args.band}-col band, plain scan", r2[0][..., 0], first, med, cpu, bmed)
     same = all(np.array_equal(a, b) for a, b in zip(r[:3], r2[:3]))
     print(f"    band (folded WHT) == band-scan on every output: {same}", flush=True)
-    r, first, med, cpu = timed(lambda: decoder._hard(st, code, code.size, (False, 0, 0), 1), args.repeats)
+    r, first, med, cpu = timed(lambda: cpu_backend.hard(st, code, columns=code.size, band=(False, 0, 0), stripe=1), args.repeats)
     report("search: hard (syndrome table)", r[0][..., 0], first, med, cpu, bmed)
 
     from edge.decode.spatial import spatial_support
@@ -163,7 +163,7 @@ def main(argv=None) -> int:
     d0 = decode(fr, wh, bl, code, spatial_check=False)
     elig = d0.candidates[..., 0] >= 0
     _, first, med, cpu = timed(lambda: spatial_support(d0.column, d0.confidence, elig,
-                                                       t_vote=decoder.DEFAULTS["t_high"]), args.repeats)
+                                                       t_vote=DEFAULTS["t_high"]), args.repeats)
     report("spatial_support (default valid mask's check)", None, first, med, cpu, bmed)
 
     bopts = dict(min_disparity=min_d, max_disparity=max_d)

@@ -5,9 +5,10 @@ from .check import check, contrast_error_map, error_map
 from .decoder import DEFAULTS, METHODS, Decoded, decode
 from .layouts import Capture, decode_axes, load_manifest, load_opencv_graycode
 from .levels import decode_refined, refine_levels
+from .settings import DEFAULT_SETTINGS, DecodeSettings
 from .spatial import confidence_median, order_prior, spatial_outliers
 
 __all__ = [
-    "Decoded", "decode", "decode_refined", "refine_levels", "DEFAULTS", "METHODS", "check",
+    "Decoded", "decode", "DecodeSettings", "DEFAULT_SETTINGS", "decode_refined", "refine_levels", "DEFAULTS", "METHODS", "check",
     "contrast_error_map", "error_map", "order_prior", "confidence_median", "spatial_outliers", "Capture", "load_opencv_graycode", "load_manifest", "decode_axes",
 ]

@@ -26,44 +26,26 @@ validity rules of `spatial.order_prior` / `spatial.confidence_median`.  Defaults
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from ..codes import Code
 from . import kernels
 from .inputs import Stack, validate
+from .backends import Q_SCALE, get as get_backend
+from .settings import DEFAULT_SETTINGS, LEVELS, METHODS, METRIC_NAMES, DecodeSettings
 from .spatial import confidence_median, order_prior, spatial_support
-from .tables import code_tables
 from .validity import eligible_column, final_mask
 
-METHODS = ("hard", "soft", "list", "median", "list+median")
-LEVELS = ("calibration", "refit")
 METRICS = {"ml": kernels.METRIC_ML, "normalized": kernels.METRIC_NORMALIZED}
+assert tuple(METRICS) == METRIC_NAMES
 
-#: Documented defaults of `decode`.
-DEFAULTS = {
-    # Noise model, in normalised intensity units (1 = full scale of the frame dtype):
-    # readout + quantisation sigma and shot-noise coefficient (variance = sr^2 + ss^2 * I).
-    "sigma_r": 0.01,
-    "sigma_s": 0.03,
-    # Valid mask: white - black (normalised) and (d2 - d1)/d2 thresholds.
-    "min_contrast": 0.02,
-    "min_confidence": 0.3,
-    # Spatial checks: confidence >= t_high votes / anchors; below t_low a pixel is never
-    # accepted on spatial support alone (the median filter replaces it).
-    "t_low": 0.05,
-    "t_high": 0.3,
-}
-
-#: Quantisation steps per unit of per-sample cost (ML: chi-square units; normalised: x**2 units).
-Q_SCALE = {kernels.METRIC_ML: 256.0, kernels.METRIC_NORMALIZED: 16384.0, kernels.METRIC_HARD: 1.0}
-#: With a disparity band of at most this many columns the soft search scans the band directly
-#: (`kernels.soft_band`); wider bands use the lane search with the band as a restriction.  The
-#: crossover measured with tools/bench_decode.py's input (ecc-22-10, 600 x 700): scan 135 / 203 /
-#: 271 ms CPU for 64 / 128 / 192 columns, lane search 272 / 224 / 217 ms.
-BAND_BRUTE_MAX = 160
+#: Documented defaults of `decode`'s thresholds and noise model (`DEFAULT_SETTINGS`, as a dict;
+#: chosen on the real OpenCV Gray-code capture, see tests/test_decode_real.py).
+DEFAULTS = {k: v for k, v in DEFAULT_SETTINGS.as_dict().items()
+            if k in ("sigma_r", "sigma_s", "min_contrast", "min_confidence", "t_low", "t_high")}
 
 
 @dataclass(frozen=True)
@@ -105,150 +87,20 @@ def _band_args(width: int, min_disparity: float | None, max_disparity: float | N
     return True, lo, hi
 
 
-def _band_columns(band: tuple[bool, int, int], stripe: int) -> int:
-    """Upper bound of the candidate columns per pixel of a disparity band."""
-    use_band, min_d, max_d = band
-    return (max_d - min_d) // stripe + 2 if use_band else 10**9
-
-
-def search(
-    stack: Stack,
-    code: Code,
-    *,
-    metric: int,
-    sigma_r: float,
-    sigma_s: float,
-    columns: int,
-    band: tuple[bool, int, int],
-    stripe: int,
-    path: str | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
-    """Exact top-3 search: (candidates (H,W,3) i32, distances (H,W,3) f32, confidence (H,W) f32, stats).
-
-    path (binary codes; default chosen from the code and band): "band" (a band of at most
-    `BAND_BRUTE_MAX` columns: folded Walsh-Hadamard blocks, `kernels.soft_band_fold`, for
-    column-linear codes, else the scan "band-scan"), "band-scan" (`kernels.soft_band`, a scan of
-    the band, any binary code), "lanes" (weight-class search over blocks of `kernels.LANES`
-    pixels, column-linear codes), "scalar" (per-pixel branch-and-bound or brute force, any
-    binary code; the reference the others are tested against).  All are exact and return the
-    same arrays.
-    """
-    tb = code_tables(code)
-    h, w = stack.shape
-    cand = np.empty((h, w, 3), np.int32)
-    dist = np.empty((h, w, 3), np.float32)
-    conf = np.empty((h, w), np.float32)
-    inv = stack.inverse if stack.inverse is not None else stack.frames[:1, :1, :1]
-    has_inv = stack.inverse is not None
-    use_band, min_d, max_d = band
-    q_scale = Q_SCALE[metric]
-    sr2, ss2 = float(sigma_r) ** 2, float(sigma_s) ** 2
-    if code.q == 2 and path is None:
-        if use_band and _band_columns(band, stripe) <= BAND_BRUTE_MAX:
-            path = "band"
-        elif tb.column_linear:
-            path = "lanes"
-        else:
-            path = "scalar"
-    if path == "band" and not tb.column_linear:
-        path = "band-scan"
-    if path in ("band", "band-scan") and not use_band:
-        raise ValueError(f"path: {path!r} needs min_disparity / max_disparity")
-    if path == "lanes" and not tb.column_linear:
-        raise ValueError(f"path: 'lanes' needs a column-linear binary code, got {code.name!r}")
-    args = (stack.frames, inv, has_inv, stack.white, stack.black, stack.scale, metric, sr2, ss2, q_scale)
-    t0 = time.perf_counter()
-    # integer frames under the ML metric: the per-pixel variance logs from a table over the raw
-    # levels (uint16: only where the image has more pixels than levels)
-    levels = 0
-    if metric == kernels.METRIC_ML and not has_inv:
-        if stack.frames.dtype == np.uint8:
-            levels = 256
-        elif stack.frames.dtype == np.uint16 and h * w >= 65536:
-            levels = 65536
-    ltab = kernels.log_levels(levels, stack.scale, sr2, ss2)
-    if code.q != 2:
-        kernels.soft_nary(*args, code.q, tb.codebook, columns, use_band, min_d, max_d, stripe,
-                          cand, dist, conf)
-        st = {"path": "nary", "brute_pixels": h * w, "evaluated": -1}
-    elif path == "band":
-        stats = np.zeros((h, 3), np.int64)
-        kernels.soft_band_fold(*args, ltab, tb.fold_b, tb.fold_v, tb.fold_sgn, tb.fold_row, tb.fold_usign,
-                               tb.masks_t, columns, min_d, max_d, stripe, cand, dist, conf, stats)
-        st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum()),
-              "wide_key_pixels": int(stats[:, 2].sum())}
-    elif path == "band-scan":
-        stats = np.zeros((h, 2), np.int64)
-        kernels.soft_band(*args, ltab, tb.masks_t, columns, min_d, max_d, stripe, cand, dist, conf, stats)
-        st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
-    elif path == "lanes":
-        stats = np.zeros((h, 5), np.int64)
-        kernels.soft_lanes(*args, ltab, tb.masks, tb.syn_col, tb.col_bit, tb.leader, tb.leader_col,
-                           tb.has_leader, tb.cls_weight, tb.cls_start, tb.cls_pstart, tb.dpos,
-                           tb.dcol, columns, use_band, min_d, max_d, stripe, cand, dist, conf, stats)
-        tot = stats.sum(axis=0)
-        st = {"path": path, "brute_pixels": 0, "evaluated": int(tot[1]),
-              "second_class_pixels": int(tot[0]), "second_class_blocks": int(tot[2]),
-              "blocks": int(tot[3]), "pending_blocks": int(tot[4])}
-    elif path == "scalar":
-        stats = np.zeros((h, 2), np.int64)
-        kernels.soft_binary(
-            *args, tb.masks, tb.comp_info, tb.col_of_info, tb.comp_syn,
-            tb.leader, tb.has_leader, tb.linear, tb.diff_masks, tb.diff_info, tb.class_start,
-            tb.sub_start, tb.sub_p0, tb.class_sub, columns, use_band, min_d, max_d, stripe,
-            BAND_BRUTE_MAX, cand, dist, conf, stats,
-        )
-        st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
-    else:
-        raise ValueError(f"path: expected 'band', 'band-scan', 'lanes' or 'scalar', got {path!r}")
-    st["seconds"] = time.perf_counter() - t0
-    return cand, dist, conf, st
-
-
-def _hard(stack: Stack, code: Code, columns: int, band: tuple[bool, int, int], stripe: int):
-    tb = code_tables(code)
-    h, w = stack.shape
-    if code.q == 2 and tb.linear and tb.has_leader:
-        cand = np.empty((h, w, 3), np.int32)
-        dist = np.empty((h, w, 3), np.float32)
-        conf = np.empty((h, w), np.float32)
-        inv = stack.inverse if stack.inverse is not None else stack.frames[:1, :1, :1]
-        use_band, min_d, max_d = band
-        t0 = time.perf_counter()
-        kernels.hard_lean(
-            stack.frames, inv, stack.inverse is not None, stack.white, stack.black, tb.syn_col,
-            tb.info_bit, tb.leader_info, tb.leader_wt, tb.col_of_info, code.d_min, columns,
-            use_band, min_d, max_d, stripe, cand, dist, conf,
-        )
-        return cand, dist, conf, {"path": "syndrome", "seconds": time.perf_counter() - t0}
-    cand, dist, conf, st = search(stack, code, metric=kernels.METRIC_HARD, sigma_r=1.0, sigma_s=0.0,
-                                  columns=columns, band=band, stripe=stripe)
-    st["path"] = "hamming-search"
-    return cand, dist, conf, st
-
-
 def decode(
     frames: np.ndarray,
     white: np.ndarray,
     black: np.ndarray,
     code: Code,
     *,
-    method: str = "soft",
+    settings: DecodeSettings | None = None,
     inverse: np.ndarray | None = None,
     min_disparity: float | None = None,
     max_disparity: float | None = None,
-    metric: str = "ml",
-    sigma_r: float = DEFAULTS["sigma_r"],
-    sigma_s: float = DEFAULTS["sigma_s"],
-    min_contrast: float = DEFAULTS["min_contrast"],
-    min_confidence: float = DEFAULTS["min_confidence"],
-    t_low: float = DEFAULTS["t_low"],
-    t_high: float = DEFAULTS["t_high"],
-    spatial_check: bool = True,
     columns: int | None = None,
     stripe: int = 1,
     bit_depth: int | None = None,
-    levels: str = "calibration",
+    **options: Any,
 ) -> Decoded:
     """Decode a capture of `code` into projector columns.
 
@@ -256,35 +108,31 @@ def decode(
     the fully lit / dark projector, same dtype; inverse: optional (n, H, W) inverse-pattern
     frames.  min/max_disparity: candidate columns for camera column x are those whose projector
     columns [row*stripe, (row+1)*stripe) meet [x - max_disparity, x - min_disparity].
-    columns: codebook rows in use (projector width / stripe, default all).  levels: the on/off
-    level of each pixel: "calibration" (white and black as given, the default) or "refit"
-    (`edge.decode.levels.decode_refined`: decode, refit each pixel's levels by least squares
-    from its own code frames plus white and black, decode again; about twice the time; not with
-    inverse frames).  See the module docstring for methods, metrics and the valid mask.
+    columns: codebook rows in use (projector width / stripe, default all).  bit_depth:
+    significant bits of uint16 frames (default 16).
+
+    settings: a `DecodeSettings` (default `DEFAULT_SETTINGS`); ``options`` are any of its fields
+    (``method="list"``, ``sigma_r=0.02``, ...) applied on top, unknown names raise one
+    ValueError.  ``levels="refit"`` (`edge.decode.levels.decode_refined`) decodes, refits each
+    pixel's on/off levels by least squares from its own code frames plus white and black, and
+    decodes again (about twice the time; not with inverse frames).  See the module docstring for
+    methods, metrics and the valid mask.
     """
-    if method not in METHODS:
-        raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
-    if levels not in LEVELS:
-        raise ValueError(f"levels: expected one of {', '.join(LEVELS)}, got {levels!r}")
-    if levels == "refit":
+    s = (DEFAULT_SETTINGS if settings is None else settings).replace(**options)
+    method, metric, sigma_r, sigma_s = s.method, s.metric, s.sigma_r, s.sigma_s
+    min_contrast, min_confidence, t_low, t_high = s.min_contrast, s.min_confidence, s.t_low, s.t_high
+    spatial_check = s.spatial_check
+    if s.levels == "refit":
         if inverse is not None:
             raise ValueError("levels: 'refit' expects no inverse frames (pattern + inverse decisions "
                              "do not use the calibration levels), got inverse=")
         from .levels import decode_refined  # levels builds on decode
 
-        return decode_refined(frames, white, black, code, method=method, bit_depth=bit_depth,
-                              min_disparity=min_disparity, max_disparity=max_disparity, metric=metric,
-                              sigma_r=sigma_r, sigma_s=sigma_s, min_contrast=min_contrast,
-                              min_confidence=min_confidence, t_low=t_low, t_high=t_high,
-                              spatial_check=spatial_check, columns=columns, stripe=stripe)
+        return decode_refined(frames, white, black, code, method=s.method, settings=s.replace(levels="calibration"),
+                              bit_depth=bit_depth, min_disparity=min_disparity,
+                              max_disparity=max_disparity, columns=columns, stripe=stripe)
     if metric not in METRICS:
         raise ValueError(f"metric: expected one of {', '.join(METRICS)}, got {metric!r}")
-    if not (sigma_r > 0 and sigma_s >= 0):
-        raise ValueError(f"sigma_r, sigma_s: expected sigma_r > 0 and sigma_s >= 0, got {sigma_r}, {sigma_s}")
-    if not (np.isfinite(min_contrast) and np.isfinite(min_confidence)):
-        raise ValueError(f"min_contrast, min_confidence: expected finite numbers, got {min_contrast}, {min_confidence}")
-    if not (0 <= t_low <= t_high <= 1):
-        raise ValueError(f"t_low, t_high: expected 0 <= t_low <= t_high <= 1, got {t_low}, {t_high}")
     if stripe < 1:
         raise ValueError(f"stripe: expected >= 1, got {stripe}")
     ncols = code.size if columns is None else int(columns)
@@ -293,11 +141,12 @@ def decode(
     stack = validate(frames, white, black, code, inverse=inverse, bit_depth=bit_depth)
     h, w = stack.shape
     band = _band_args(w, min_disparity, max_disparity)
+    backend = get_backend(s.backend)
     if method == "hard":
-        cand, dist, conf, st = _hard(stack, code, ncols, band, stripe)
+        cand, dist, conf, st = backend.hard(stack, code, columns=ncols, band=band, stripe=stripe)
     else:
-        cand, dist, conf, st = search(stack, code, metric=METRICS[metric], sigma_r=sigma_r,
-                                      sigma_s=sigma_s, columns=ncols, band=band, stripe=stripe)
+        cand, dist, conf, st = backend.search(stack, code, metric=METRICS[metric], sigma_r=sigma_r,
+                                              sigma_s=sigma_s, columns=ncols, band=band, stripe=stripe)
     # eligible = contrast >= min_contrast & column >= 0 (contrast in float32), one fused pass
     column0 = np.empty((h, w), np.int32)
     eligible = np.empty((h, w), np.bool_)

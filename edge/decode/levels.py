@@ -101,6 +101,8 @@ def decode_refined(frames: np.ndarray, white: np.ndarray, black: np.ndarray, cod
         raise ValueError("decode_refined: expected no inverse frames (they do not use calibration levels), got inverse=")
     if iterations < 0:
         raise ValueError(f"iterations: expected >= 0, got {iterations}")
+    if kwargs.get("settings") is not None:  # the passes below decode with calibration levels
+        kwargs["settings"] = kwargs["settings"].replace(levels="calibration")
     f, w, b = normalised(frames, white, black, code, bit_depth=bit_depth)
     w, b = initial_levels(f, w, b)
     first = "hard" if method == "hard" else "soft"

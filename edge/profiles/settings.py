@@ -238,6 +238,14 @@ class DecoderSettings:
     method: str = _f("soft")  # checked against the pipeline kind in _check_profile
     min_contrast: float = _f(0.0, lo=0.0, hi=1.0, hi_open=True)
     min_confidence: float = _f(0.0, lo=0.0, hi=1.0, hi_open=True)
+    # The rest of `edge.decode.settings.DecodeSettings` (checked by it in _check_pipeline; the
+    # defaults are the library's), so a profile can express every decoder configuration.
+    metric: str = _f("ml")
+    levels: str = _f("calibration")
+    t_low: float = _f(0.05, lo=0.0, hi=1.0)
+    t_high: float = _f(0.3, lo=0.0, hi=1.0)
+    spatial_check: bool = _f(True)
+    backend: str = _f("cpu")
 
 
 @dataclass(frozen=True)
@@ -477,6 +485,13 @@ def _check_pipeline(p: Profile, source: str) -> None:
                            f"got {p.decoder.method!r}")
     d_lo, d_hi = p.decoder.min_disparity, p.decoder.max_disparity
     if kind == "columns":
+        from edge.decode.settings import from_profile  # the decoder's own rules, one source
+
+        try:
+            from_profile(p)
+        except ValueError as e:
+            key, _, reason = str(e).partition(": ")
+            raise ProfileError(source, f"decoder.{key.split(',')[0]}", reason) from None
         if 2 * p.projector.stripe > p.projector.width:
             raise ProfileError(source, "projector.stripe",
                                f"expected <= projector.width / 2 = {p.projector.width // 2} so the projector "

@@ -198,13 +198,12 @@ class DepthPipeline:
     def decode(self, codes: np.ndarray, white: np.ndarray, black: np.ndarray):
         """`edge.decode.decode` with the profile's method, noise model, thresholds and disparity band."""
         from edge.decode import decode
+        from edge.decode.settings import from_profile
 
         p = self.profile
         return decode(
-            codes, white, black, self.code, method=p.decoder.method,
+            codes, white, black, self.code, settings=from_profile(p),
             min_disparity=p.decoder.min_disparity, max_disparity=p.decoder.max_disparity,
-            sigma_r=max(p.camera.sigma_r, 1e-4), sigma_s=p.camera.sigma_s,
-            min_contrast=p.decoder.min_contrast, min_confidence=p.decoder.min_confidence,
             columns=self.columns, stripe=self.stripe,
             bit_depth=p.camera.bits if codes.dtype == np.uint16 else None,
         )

@@ -1,0 +1,75 @@
+"""Decode backends: where the exact top-3 search runs.
+
+A backend is a module with two functions (the seam every backend implements, tested against the
+brute-force reference in tests/test_decode.py):
+
+``search(stack, code, *, metric, sigma_r, sigma_s, columns, band, stripe, path=None)``
+    Exact soft top-3 over the codebook rows ``0..columns-1`` (restricted to the disparity
+    ``band = (use_band, min_d, max_d)``, pixels).  ``stack``: `edge.decode.inputs.Stack`;
+    ``metric``: `edge.decode.kernels.METRIC_ML` / ``METRIC_NORMALIZED`` / ``METRIC_HARD``.
+    Returns ``(candidates (H,W,3) int32, distances (H,W,3) float32, confidence (H,W) float32,
+    stats dict)``; costs are quantised with `Q_SCALE` so every backend returns the same arrays.
+``hard(stack, code, *, columns, band, stripe)``
+    Hard decisions against (white + black)/2 (or pattern vs inverse), nearest codeword in
+    Hamming distance; same return as ``search``.
+
+Registering a backend: its module in this package plus one line in `_MODULES`.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+from types import ModuleType
+
+from ..settings import BACKEND_NAMES
+
+__all__ = ["BACKEND_NAMES", "Q_SCALE", "available", "get", "resolve"]
+
+log = logging.getLogger("edge.decode")
+
+#: Quantisation steps per unit of per-sample cost, by metric id (ML: chi-square units;
+#: normalised: x**2 units; hard: Hamming units).  Shared by every backend.
+Q_SCALE = {0: 256.0, 1: 16384.0, 2: 1.0}
+
+#: backend name -> module (imported on first use: a backend's dependencies stay optional).
+_MODULES = {"cpu": "edge.decode.backends.cpu", "cuda": "edge.decode.backends.cuda"}
+
+
+def available(name: str) -> bool:
+    """True when backend `name` can run here (its module imports and, for "cuda", a device is present)."""
+    if name not in _MODULES:
+        return False
+    try:
+        mod = importlib.import_module(_MODULES[name])
+    except ImportError:
+        return False
+    probe = getattr(mod, "is_available", None)
+    return bool(probe()) if probe is not None else True
+
+
+def resolve(name: str) -> str:
+    """The concrete backend for a settings value: "auto" -> "cuda" where available, else "cpu" (logged)."""
+    if name not in BACKEND_NAMES:
+        raise ValueError(f"backend: expected one of {', '.join(BACKEND_NAMES)}, got {name!r}")
+    if name != "auto":
+        return name
+    if available("cuda"):
+        return "cuda"
+    log.info("decoder backend auto: no CUDA device, decoding on the CPU")
+    return "cpu"
+
+
+def get(name: str) -> ModuleType:
+    """The backend module for `name` ("auto" resolved); a clear error where it cannot run."""
+    concrete = resolve(name)
+    if concrete not in _MODULES:
+        raise ValueError(f"backend: expected one of {', '.join(_MODULES)}, got {name!r}")
+    try:
+        mod = importlib.import_module(_MODULES[concrete])
+    except ImportError as e:
+        raise ValueError(f"backend {concrete!r}: not installed here ({e}); install the extra or use backend='cpu'") from None
+    probe = getattr(mod, "is_available", None)
+    if probe is not None and not probe():
+        raise ValueError(f"backend {concrete!r}: no device available here; use backend='cpu' or 'auto'")
+    return mod

@@ -1,0 +1,101 @@
+"""`DecodeSettings`: the one decoder settings object (library, profiles, evaluations, service).
+
+Every knob of the column decoder that is not a fact of the capture lives here; the capture's
+facts (inverse frames, disparity band, columns in use, stripe width, bit depth) stay arguments of
+`edge.decode.decode`.  A profile's ``[decoder]`` / ``[camera]`` sections map onto it with
+`from_profile`, so any configuration an evaluation runs can be written in a profile.
+
+Fields (units: normalised intensity, 1 = full scale of the frame dtype):
+
+* ``method``: "hard" | "soft" | "list" | "median" | "list+median" (see `edge.decode.decoder`).
+* ``metric``: "ml" (heteroscedastic Gaussian likelihood) | "normalized" (the paper's distance).
+* ``levels``: "calibration" (white / black taken as the on / off levels) | "refit" (per-pixel
+  least-squares refit from the code frames, `edge.decode.levels`).
+* ``sigma_r`` > 0, ``sigma_s`` >= 0: read + quantisation sigma and shot-noise coefficient
+  (variance = sigma_r**2 + sigma_s**2 * I).
+* ``min_contrast``: white - black floor; ``min_confidence``: (d2 - d1)/d2 floor.
+* ``t_low`` <= ``t_high`` in [0, 1]: spatial-check thresholds (voters / anchors >= t_high; below
+  t_low never accepted on spatial support alone).
+* ``spatial_check``: accept confidence in [t_low, min_confidence) where 5x5 neighbours agree.
+* ``backend``: "cpu" | "cuda" | "auto" (`edge.decode.backends.resolve`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+METHODS = ("hard", "soft", "list", "median", "list+median")
+METRIC_NAMES = ("ml", "normalized")
+LEVELS = ("calibration", "refit")
+BACKEND_NAMES = ("cpu", "cuda", "auto")
+
+
+@dataclass(frozen=True)
+class DecodeSettings:
+    """Validated decoder settings (see the module docstring for each field)."""
+
+    method: str = "soft"
+    metric: str = "ml"
+    levels: str = "calibration"
+    sigma_r: float = 0.01
+    sigma_s: float = 0.03
+    min_contrast: float = 0.02
+    min_confidence: float = 0.3
+    t_low: float = 0.05
+    t_high: float = 0.3
+    spatial_check: bool = True
+    backend: str = "cpu"
+
+    def __post_init__(self) -> None:
+        for name, allowed in (("method", METHODS), ("metric", METRIC_NAMES), ("levels", LEVELS),
+                              ("backend", BACKEND_NAMES)):
+            v = getattr(self, name)
+            if v not in allowed:
+                raise ValueError(f"{name}: expected one of {', '.join(allowed)}, got {v!r}")
+        for name in ("sigma_r", "sigma_s", "min_contrast", "min_confidence", "t_low", "t_high"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"{name}: expected a finite number, got {v!r}")
+        if not (self.sigma_r > 0 and self.sigma_s >= 0):
+            raise ValueError(f"sigma_r, sigma_s: expected sigma_r > 0 and sigma_s >= 0, got {self.sigma_r}, {self.sigma_s}")
+        if not (0 <= self.t_low <= self.t_high <= 1):
+            raise ValueError(f"t_low, t_high: expected 0 <= t_low <= t_high <= 1, got {self.t_low}, {self.t_high}")
+        if not isinstance(self.spatial_check, bool):
+            raise ValueError(f"spatial_check: expected True or False, got {self.spatial_check!r}")
+
+    def replace(self, **changes: Any) -> "DecodeSettings":
+        """A copy with `changes` applied; unknown names raise one ValueError naming them."""
+        unknown = sorted(set(changes) - set(FIELDS))
+        if unknown:
+            raise ValueError(f"decoder settings: unknown option(s) {', '.join(unknown)}; "
+                             f"expected any of {', '.join(FIELDS)}")
+        return dataclasses.replace(self, **changes) if changes else self
+
+    def as_dict(self) -> dict[str, Any]:
+        """The settings as a plain dict (field name -> value)."""
+        return dataclasses.asdict(self)
+
+
+FIELDS = tuple(f.name for f in dataclasses.fields(DecodeSettings))
+#: The library's defaults (what `edge.decode.decode` uses with no options).
+DEFAULT_SETTINGS = DecodeSettings()
+
+
+def from_profile(profile: Any) -> DecodeSettings:
+    """The `DecodeSettings` a validated profile asks for (duck-typed: reads attributes only).
+
+    ``[decoder]`` keys named like a field override the library default; the noise model comes
+    from ``[camera] sigma_r / sigma_s`` (sigma_r floored at 1e-4: a noiseless simulated camera
+    still quantises).  Keys a profile does not have keep the library default.
+    """
+    dec = profile.decoder
+    values = {name: getattr(dec, name) for name in FIELDS if hasattr(dec, name)}
+    cam = getattr(profile, "camera", None)
+    if cam is not None and "sigma_r" not in values and hasattr(cam, "sigma_r"):
+        values["sigma_r"] = max(float(cam.sigma_r), 1e-4)
+    if cam is not None and "sigma_s" not in values and hasattr(cam, "sigma_s"):
+        values["sigma_s"] = float(cam.sigma_s)
+    return DEFAULT_SETTINGS.replace(**values)

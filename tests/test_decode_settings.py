@@ -1,0 +1,55 @@
+"""The one decoder settings object: validation, options, profiles, backend choice."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pytest
+
+from edge.codes import get_code
+from edge.decode import DEFAULT_SETTINGS, DecodeSettings, decode
+from edge.decode import backends
+from edge.decode.settings import FIELDS, from_profile
+from edge.decode.synthetic import make_capture
+from edge.profiles import load_profile
+
+
+def test_bad_values_name_the_field():
+    for kw, name in (({"method": "best"}, "method"), ({"sigma_r": 0.0}, "sigma_r"),
+                     ({"t_low": 0.5, "t_high": 0.2}, "t_low"), ({"backend": "tpu"}, "backend"),
+                     ({"min_contrast": float("nan")}, "min_contrast"), ({"spatial_check": 1}, "spatial_check")):
+        with pytest.raises(ValueError, match=name):
+            DecodeSettings(**kw)
+    with pytest.raises(ValueError, match="unknown option.*colour"):
+        DEFAULT_SETTINGS.replace(colour="red")
+
+
+def test_options_equal_settings():
+    code = get_code("ecc-15-10")
+    rng = np.random.default_rng(3)
+    cap = make_capture(code, rng.integers(0, code.size, (12, 40)), rng=rng, albedo=0.3, sigma_r=0.05)
+    s = DEFAULT_SETTINGS.replace(method="list", min_confidence=0.2)
+    a = decode(cap.frames, cap.white, cap.black, code, settings=s)
+    b = decode(cap.frames, cap.white, cap.black, code, method="list", min_confidence=0.2)
+    assert np.array_equal(a.column, b.column) and np.array_equal(a.confidence, b.confidence)
+    with pytest.raises(ValueError, match="unknown option"):
+        decode(cap.frames, cap.white, cap.black, code, thresold=0.1)
+
+
+def test_profile_maps_every_field(tmp_path):
+    p = load_profile("sim-dlp")
+    s = from_profile(p)
+    assert s.method == p.decoder.method and s.min_contrast == p.decoder.min_contrast
+    assert s.sigma_s == p.camera.sigma_s and s.sigma_r == max(p.camera.sigma_r, 1e-4)
+    assert set(FIELDS) - {"sigma_r", "sigma_s"} <= set(vars(p.decoder)), "a settings field a profile cannot express"
+
+
+def test_auto_backend_falls_back_with_a_log_line(caplog, monkeypatch):
+    monkeypatch.setattr(backends, "available", lambda name: name == "cpu")
+    with caplog.at_level(logging.INFO, logger="edge.decode"):
+        assert backends.resolve("auto") == "cpu"
+    assert "no CUDA device" in caplog.text
+    assert backends.resolve("cpu") == "cpu"
+    with pytest.raises(ValueError, match="backend"):
+        backends.resolve("gpu")
