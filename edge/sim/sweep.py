@@ -134,8 +134,9 @@ def edge_decoder() -> Decoder:
     """Decoder function backed by `edge.decode.decode` (ImportError if it is not available)."""
     from ..decode import decode  # noqa: PLC0415 - optional peer module
     from ..decode.levels import decode_refined  # noqa: PLC0415
+    from ..decode.settings import FIELDS  # noqa: PLC0415
 
-    params = set(inspect.signature(decode).parameters)
+    params = set(inspect.signature(decode).parameters) | set(FIELDS)
 
     def run(cap: Capture, code: Code, method: str, band: tuple[int, int],
             levels: str = "calibration") -> tuple[np.ndarray, np.ndarray]:
