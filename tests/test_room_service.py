@@ -42,7 +42,7 @@ def _alone_depth(profile_path, device: str, code: int, stack: int) -> np.ndarray
     """The member's depth for ``stack`` with nobody else in the room (same profile, same code)."""
     from edge.profiles import apply_update, load_profile
     from edge.runtime.assembly import StackAssembler
-    from edge.runtime.pipeline import make_pipeline
+    from edge.runtime.pipelines import make_pipeline
     from edge.runtime.room import Member, room_profile
     from edge.sensors import open_sensor
     from edge.sensors.room_model import StaticMember, StaticRoom

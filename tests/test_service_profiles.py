@@ -12,7 +12,7 @@ import pytest
 
 from edge.profiles import apply_update, list_profiles, load_profile
 from edge.runtime.assembly import Stack
-from edge.runtime.pipeline import make_pipeline, pipeline_kind
+from edge.runtime.pipelines import make_pipeline, pipeline_kind
 from edge.sensors import open_sensor
 from edge.sensors.base import EventSlice
 from edge.sim import scene_names

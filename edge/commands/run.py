@@ -348,7 +348,7 @@ def _run_service(args: argparse.Namespace, holder: dict[str, Any], received: lis
     try:
         if received:
             service.stop()
-        from edge.runtime.pipeline import pipeline_kind
+        from edge.device import pipeline_kind
 
         coding = " + ".join(x for x in (service.profile.code.name, service.profile.code.source and
                                         f"source {service.profile.code.source}") if x) or "uncoded"

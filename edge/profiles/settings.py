@@ -14,6 +14,9 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     backend = "sim"                       # sim | replay | oak | event
     replay_path = ""                      # MCAP file for the replay backend ("" = given on the CLI)
     replay_speed = "recorded"             # recorded | max
+    pipeline = ""                         # columns | dots | event-dots | curtain (edge.device.PIPELINES);
+                                          # "" = from projector.kind: columns -> columns, line -> curtain,
+                                          # dots -> event-dots with backend "event", else dots
 
     [projector]
     kind = "columns"                      # columns (DLP code patterns) | dots | line
@@ -112,6 +115,8 @@ import typing
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
+from edge.device import PIPELINES
+
 __all__ = [
     "ProfileError",
     "Profile",
@@ -138,6 +143,8 @@ __all__ = [
 ]
 
 SENSOR_BACKENDS = ("sim", "replay", "oak", "event")
+#: pipeline kinds a profile may declare (``sensor.pipeline``), from the registry in `edge.device`
+PIPELINE_KINDS = tuple(PIPELINES)
 PROJECTOR_KINDS = ("columns", "dots", "line")
 ZENOH_MODES = ("peer", "client", "router")
 COMPRESSIONS = ("zstd", "lz4", "none")
@@ -203,6 +210,7 @@ class SensorSettings:
     backend: str = _f("sim", choices=SENSOR_BACKENDS)
     replay_path: str = _f("")
     replay_speed: str = _f("recorded", choices=("recorded", "max"))
+    pipeline: str = _f("", choices=("",) + PIPELINE_KINDS)  # "" = edge.device.default_pipeline
 
 
 @dataclass(frozen=True)
@@ -470,6 +478,11 @@ def _check_pipeline(p: Profile, source: str) -> None:
     from edge.codes import get_code
 
     kind = p.projector.kind
+    declared = p.sensor.pipeline
+    if declared and PIPELINES[declared].projector != kind:
+        raise ProfileError(source, "sensor.pipeline",
+                           f"expected a pipeline that reads a {kind!r} projector "
+                           f"({', '.join(repr(k) for k, s in PIPELINES.items() if s.projector == kind)}), got {declared!r}")
     methods = decoder_methods(kind)
     if p.decoder.method not in methods:
         raise ProfileError(source, "decoder.method",

@@ -30,7 +30,7 @@ import numpy as np
 
 from edge.io.ros import OPTICAL_ROTATION, frame_ids
 
-from .pipeline import DepthResult
+from .result import DepthResult
 
 
 def _require_foxglove():

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from .pipeline import DepthResult
+from .result import DepthResult
 
 
 class ZenohSink:

@@ -19,7 +19,7 @@ from typing import Any
 from edge.io.mcap_writer import Recorder
 
 from ..sensors.base import EventSlice, Frame, parse_projector_frame
-from .pipeline import DepthResult
+from .result import DepthResult
 
 
 #: JSON schema of ``/<device>/config_change`` messages.

@@ -18,7 +18,8 @@ import numpy as np
 
 from ..sensors.base import Frame, parse_projector_frame
 from .assembly import StackAssembler
-from .pipeline import DepthResult, make_pipeline, pipeline_kind
+from .pipelines import make_pipeline, pipeline_kind
+from .result import DepthResult
 
 
 @dataclass

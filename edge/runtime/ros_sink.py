@@ -33,7 +33,7 @@ from typing import Any, Mapping
 
 from edge.io import ros
 
-from .pipeline import DepthResult
+from .result import DepthResult
 
 IMAGE, INFO, CLOUD = "sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg/PointCloud2"
 TF = "tf2_msgs/msg/TFMessage"

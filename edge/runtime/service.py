@@ -27,7 +27,8 @@ import numpy as np
 
 from ..sensors.base import EndOfStream, Frame, MaskedCapture, Sensor
 from .assembly import StackAssembler
-from .pipeline import DepthResult, make_pipeline
+from .pipelines import make_pipeline
+from .result import DepthResult
 from .sdnotify import Notifier
 from .stack_queue import Closed, LatestQueue
 

@@ -241,7 +241,7 @@ def test_switch_to_a_variant_that_failed_to_compile_or_does_not_fit_is_refused()
 
 def test_real_warm_up_covers_every_switchable_variant():
     """The standard pipeline: every other method and the EDC stage decode a synthetic stack."""
-    from edge.runtime.pipeline import make_pipeline
+    from edge.runtime.pipelines import make_pipeline
     from edge.runtime.warmup import switchable_variants, warm_up_all
 
     profile = load_test_profile()
