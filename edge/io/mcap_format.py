@@ -17,7 +17,11 @@ topic                       schema (encoding)           content
 ``/<device>/confidence``    foxglove.RawImage (pb)      ``mono8``, higher = more confident
 ``/<device>/output_info``   edge.OutputInfo (json)      one per depth map, just before it:
                                                         stack, sequence, timestamp_ns + extras
-``/<device>/stack``         edge.StackInfo (json)       per-stack metadata from the runtime
+``/<device>/stack``         edge.StackInfo (json)       one per decoded stack, after its depth:
+                                                        stack, sequence, frames, extra_frames,
+                                                        edc_rounds, received_ns, decode_ms,
+                                                        edc_round_ms, edc_capture_ms, stats
+                                                        (`edge.runtime.recording.stack_info`)
 ``/<device>/calibration``   foxglove.CameraCalibration  camera intrinsics from the profile
                             (pb)                        geometry (plumb_bob, zero distortion):
                                                         one at the start and one per depth map
@@ -107,7 +111,16 @@ JSON_SCHEMAS: dict[str, dict[str, Any]] = {
             "timestamp_ns": {"type": "integer"},
         },
     },
-    "edge.StackInfo": {"type": "object", "properties": {"stack": {"type": "integer"}}},
+    "edge.StackInfo": {
+        "type": "object",
+        "properties": {
+            "stack": {"type": "integer"}, "sequence": {"type": "integer"}, "frames": {"type": "integer"},
+            "extra_frames": {"type": "integer"}, "edc_rounds": {"type": "integer"},
+            "received_ns": {"type": "integer"}, "decode_ms": {"type": "number"},
+            "edc_round_ms": {"type": "array", "items": {"type": "number"}},
+            "edc_capture_ms": {"type": "array", "items": {"type": "number"}}, "stats": {"type": "object"},
+        },
+    },
 }
 
 

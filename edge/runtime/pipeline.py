@@ -136,7 +136,7 @@ class DepthPipeline:
                          np.asarray(decoded.confidence, dtype=np.float32), None)
         return time.perf_counter() - t0
 
-    def validity(self, decoded, white: np.ndarray, black: np.ndarray) -> np.ndarray:
+    def validity(self, decoded) -> np.ndarray:
         """(H, W) bool: the decoder's valid mask (it applies the profile's contrast and confidence
         thresholds) and a non-negative column."""
         return np.asarray(decoded.valid, dtype=bool) & (np.asarray(decoded.column) >= 0)
@@ -147,7 +147,7 @@ class DepthPipeline:
         images = self.stacked(stack.frames)
         codes, white, black = images[: self.n], images[self.n], images[self.n + 1]
         decoded = self.decode(codes, white, black)
-        valid = self.validity(decoded, white, black)
+        valid = self.validity(decoded)
         column = np.where(valid, np.asarray(decoded.column, dtype=np.int32), np.int32(-1))
         confidence = np.asarray(decoded.confidence, dtype=np.float32)
         rounds, extra, round_ms, capture_ms = 0, (), (), ()
