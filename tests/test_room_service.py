@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-zenoh = pytest.importorskip("zenoh")
+import zenoh  # a hard dependency: a broken install fails here, it is not skipped
 
 ROOT = Path(__file__).resolve().parents[1]
 PROFILES = Path(__file__).parent / "data" / "profiles"

@@ -246,7 +246,41 @@ def test_event_pipeline_counts_exactly_and_rejects_frames():
 
 
 def test_columns_pipeline_warm_up_compiles_before_capture():
-    service, status, _ = _run_cli_service("sim-dlp", stacks=1)
-    assert status["warm_up_s"] > 0.0  # the service decoded a synthetic stack before starting the sensor
+    """A cold start decodes no stale stack: the compile pause happens before the sensor starts."""
+    import time
+
+    from tests._service_helpers import load_test_profile
+
+    from edge.runtime.pipeline import DepthPipeline
+    from edge.runtime.service import Service
+    from edge.sensors.sim import SimSensor
+
+    compile_s = 2.5
+
+    class ColdPipeline(DepthPipeline):
+        """Like numba with an empty cache: the first decode compiles, unless warm_up() did it."""
+
+        compiled = False
+
+        def warm_up(self):
+            if not ColdPipeline.compiled:
+                time.sleep(compile_s)
+                ColdPipeline.compiled = True
+            return super().warm_up()
+
+        def process(self, stack, masked_capture=None):
+            if not ColdPipeline.compiled:
+                time.sleep(compile_s)
+                ColdPipeline.compiled = True
+            return super().process(stack, masked_capture)
+
+    # 30 fps: a stack every 0.8 s, real-time pacing; a compile pause inside capture would let about
+    # three stacks pass and the one-stack queue (the default) drop the stale ones
+    p = load_test_profile(camera={"rate_hz": 30.0}, projector={"rate_hz": 30.0})
+    sink = Collect()
+    status = Service(p, SimSensor(p), sinks=[sink], pipeline_factory=ColdPipeline).run(stacks=3)
+    assert ColdPipeline.compiled and status["warm_up"]["done"]
+    assert [r.stack for r in sink.results] == [0, 1, 2], [r.stack for r in sink.results]
+    assert status["stacks_dropped_stale"] == 0 and status["stacks_dropped"] == 0, status
     pipeline = make_pipeline(load_profile("sim-dlp"))
     assert pipeline.warm_up() < 5.0  # kernels are compiled once per process: a second warm-up is cheap
