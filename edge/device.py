@@ -14,6 +14,7 @@ shows, how long a source-code slot lasts and which curtain a scan sweeps.  They 
     model.slot_us         # int, one source-code slot in microseconds (1e6 / projector.rate_hz)
     model.dot_pattern()   # bool (projector.height, projector.width): the dot projector's pattern
     model.curtain_disparity(stack)  # int pixels: the curtain scanned in ``stack``
+    frame_ids(profile.zenoh.device)  # REP 103 / 105 frame names: <name>_link, _optical_frame, ...
 
 Projector frame ids (the wire convention of every backend, recording and assembler) pack three
 facts into one non-negative int::
@@ -39,6 +40,7 @@ attributes) and imports only `edge.codes` and `edge.source` (lazily).
 from __future__ import annotations
 
 import functools
+import re
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -304,3 +306,24 @@ class DeviceModel:
     def curtain_disparity(self, stack: int) -> int:
         """Disparity (pixels) of the curtain scanned in ``stack`` (`curtain_disparity`)."""
         return curtain_disparity(self.profile, stack)
+
+
+# -- names -----------------------------------------------------------------------------------
+
+
+def ros_name(name: str) -> str:
+    """A ROS-legal name token from an edge device / profile name: every character outside
+    [A-Za-z0-9_] becomes '_', and a leading digit gets a '_' prefix (``sim-dlp`` -> ``sim_dlp``)."""
+    out = re.sub(r"[^A-Za-z0-9_]", "_", str(name))
+    if not out:
+        raise ValueError("expected a non-empty name for a ROS node / topic")
+    return "_" + out if out[0].isdigit() else out
+
+
+def frame_ids(device: str) -> dict[str, str]:
+    """REP 103 / 105 frame ids of one device: ``base`` ``<name>_link`` (body: x forward, y left,
+    z up), ``optical`` ``<name>_optical_frame`` (the camera: depth, confidence, points,
+    calibration) and ``projector`` ``<name>_projector_optical_frame`` (the projector, or the
+    right camera of a stereo profile: the optical frame moved by +baseline_m along x)."""
+    n = ros_name(device)
+    return {"base": f"{n}_link", "optical": f"{n}_optical_frame", "projector": f"{n}_projector_optical_frame"}

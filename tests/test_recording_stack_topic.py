@@ -5,8 +5,8 @@ from __future__ import annotations
 from tests._service_helpers import load_test_profile
 
 from edge.io.mcap import RecordingReader
-from edge.runtime.recording import RecordingThread
-from edge.runtime.replay import replay_recording
+from edge.io.recording import RecordingThread
+from edge.io.replay import replay_recording
 from edge.runtime.service import Service
 from edge.sensors.base import parse_projector_frame
 from edge.sensors.sim import SimSensor

@@ -28,7 +28,7 @@ def free_port() -> int:
 
 def _service(device: str, **zenoh_settings):
     from edge.profiles import apply_update
-    from edge.runtime.publish import ZenohSink
+    from edge.io.publish import ZenohSink
     from edge.runtime.service import Service
     from edge.sensors.sim import SimSensor
 

@@ -142,7 +142,7 @@ def test_dots_pipeline_stereo_frames_match_reference_mode():
 
 
 def test_event_slice_message_round_trip():
-    from edge.runtime.event_record import event_slice_message, parse_event_slice
+    from edge.io.event_record import event_slice_message, parse_event_slice
     from edge.source.events import make_events
 
     ev = make_events([1, 5, 159], [0, 7, 119], [1000, 1001, 1500], [1, -1, 1])
@@ -183,8 +183,8 @@ class CorruptingSensor:
 
 def test_event_service_records_bad_input_counted_and_replays_bit_exact(tmp_path):
     from edge.io.mcap import RecordingReader
-    from edge.runtime.recording import RecordingThread
-    from edge.runtime.replay import replay_recording
+    from edge.io.recording import RecordingThread
+    from edge.io.replay import replay_recording
     from edge.runtime.service import Service
 
     p = small_event_profile()

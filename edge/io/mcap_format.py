@@ -21,7 +21,7 @@ topic                       schema (encoding)           content
                                                         stack, sequence, frames, extra_frames,
                                                         edc_rounds, received_ns, decode_ms,
                                                         edc_round_ms, edc_capture_ms, stats
-                                                        (`edge.runtime.recording.stack_info`)
+                                                        (`edge.io.recording.stack_info`)
 ``/<device>/calibration``   foxglove.CameraCalibration  camera intrinsics from the profile
                             (pb)                        geometry (plumb_bob, zero distortion):
                                                         one at the start and one per depth map
@@ -36,7 +36,7 @@ topic                       schema (encoding)           content
                                                         column-wise x, y, t, p plus sequence,
                                                         stack, projector_frame, time window;
                                                         MCAP ``sequence`` = slice sequence
-                                                        (`edge.runtime.event_record`)
+                                                        (`edge.io.event_record`)
 ==========================  ==========================  =======================================
 
 Frame ids (`edge.io.ros.frame_ids`, REP 103 / 105, ``<name>`` = device with ``-`` -> ``_``):
@@ -44,7 +44,7 @@ images, calibration and points are in ``<name>_optical_frame``, so Foxglove proj
 image and draws the cloud in one frame tree.
 
 ``/<device>/config_change`` (edge.ConfigChange, json) holds every config update the running service
-accepted: time_ns, keys, update, profile (`edge.runtime.recording`).
+accepted: time_ns, keys, update, profile (`edge.io.recording`).
 
 Further topics are added through `edge.io.mcap_writer.Recorder.register_channel` (same
 ``/<device>/<leaf>`` naming); `topics` lists the standard ones that every recording has.

@@ -88,7 +88,7 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     lead_frames = 2                       # emitter command this many frames ahead (latency)
     emitter_control = "script"            # script (on-device Script node per frame) | host
 
-    [ros]                                 # ROS 2 over rmw_zenoh (edge.runtime.ros_sink)
+    [ros]                                 # ROS 2 over rmw_zenoh (edge.io.ros_sink)
     enabled = false                       # or `edge run --ros`; domain from ROS_DOMAIN_ID (default 0)
     router = "tcp/localhost:7447"         # the rmw_zenohd router to connect to
     node = ""                             # ROS node name ("" = device name with '-' -> '_')

@@ -429,7 +429,7 @@ class Service:
         """Exposure, gain, projector power, serial, firmware, edge version and intrinsics (what a
         RealSense / depthai user expects in a status message)."""
         from edge import __version__ as version
-        from edge.io.ros import frame_ids
+        from edge.device import frame_ids
 
         dev = self._sensor_device()
         g = getattr(self.pipeline, "geometry", None) or self.profile.geometry

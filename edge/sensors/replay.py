@@ -54,7 +54,7 @@ class ReplaySensor:
     def _records(self):
         """Frames (or, for an event recording, `EventSlice` records) in file order."""
         if self.events:
-            from edge.runtime.event_record import event_stacks
+            from edge.io.event_record import event_stacks
 
             for _, slices, _ in event_stacks(self.reader):
                 yield from slices

@@ -24,8 +24,8 @@ UNIT = ROOT / "deploy" / "systemd" / "edge.service"
 def test_rotation_by_size_every_file_finalised_and_replayable(tmp_path):
     from mcap.reader import make_reader
 
-    from edge.runtime.recording import RecordingThread, series_files
-    from edge.runtime.replay import replay_recording
+    from edge.io.recording import RecordingThread, series_files
+    from edge.io.replay import replay_recording
     from edge.runtime.service import Service
     from edge.sensors.sim import SimSensor
 
@@ -54,7 +54,7 @@ def test_rotation_by_size_every_file_finalised_and_replayable(tmp_path):
 
 
 def test_rotation_keep_bounds_the_number_of_files(tmp_path):
-    from edge.runtime.recording import RecordingThread, series_files
+    from edge.io.recording import RecordingThread, series_files
     from edge.runtime.service import Service
     from edge.sensors.sim import SimSensor
 

@@ -1,5 +1,5 @@
 """Recording off the capture path: a writer thread around `EdgeRecorder` (an
-`edge.io.mcap_writer.Recorder` that also writes event slices, `edge.runtime.event_record`).
+`edge.io.mcap_writer.Recorder` that also writes event slices, `edge.io.event_record`).
 
 The capture and decode threads only append to an in-memory queue (bounded by bytes, default
 512 MB); one writer thread serialises, compresses and writes.  If the writer ever falls that far
@@ -19,7 +19,7 @@ from typing import Any
 from edge.io.mcap_writer import Recorder
 
 from ..sensors.base import EventSlice, Frame, parse_projector_frame
-from .result import DepthResult
+from edge.runtime.result import DepthResult
 
 
 #: JSON schema of ``/<device>/config_change`` messages.
@@ -45,7 +45,7 @@ def stack_info(result: DepthResult) -> dict[str, Any]:
 
 class EdgeRecorder(Recorder):
     """`Recorder` plus `write_events`: event slices on ``/<device>/events`` (schema ``edge.EventSlice``,
-    protobuf; layout in `edge.runtime.event_record`).  The channel is registered on the first slice
+    protobuf; layout in `edge.io.event_record`).  The channel is registered on the first slice
     (through the public `Recorder.register_channel`), so frame recordings are unchanged."""
 
     _events_channel: int | None = None
@@ -276,7 +276,7 @@ class RecordingThread:
             pts = None
             settings = rec.profile.points
             if settings.record:
-                from .points import result_points
+                from edge.runtime.points import result_points
 
                 pts = result_points(r, rec.profile.geometry, settings.stride)
             rec.write_depth(r.depth_mm, r.confidence, timestamp_ns=r.timestamp_ns, stack=r.stack,
