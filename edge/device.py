@@ -154,7 +154,6 @@ PIPELINES: dict[str, PipelineSpec] = {
     "event-dots": PipelineSpec("dots", "edge.runtime.dots:EventDotsPipeline"),
     "curtain": PipelineSpec("line", "edge.runtime.curtain:CurtainPipeline"),
 }
-PIPELINE_KINDS = tuple(PIPELINES)
 
 
 def default_pipeline(projector_kind: str, sensor_backend: str) -> str:

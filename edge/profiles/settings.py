@@ -143,8 +143,6 @@ __all__ = [
 ]
 
 SENSOR_BACKENDS = ("sim", "replay", "oak", "event")
-#: pipeline kinds a profile may declare (``sensor.pipeline``), from the registry in `edge.device`
-PIPELINE_KINDS = tuple(PIPELINES)
 PROJECTOR_KINDS = ("columns", "dots", "line")
 ZENOH_MODES = ("peer", "client", "router")
 COMPRESSIONS = ("zstd", "lz4", "none")
@@ -210,7 +208,7 @@ class SensorSettings:
     backend: str = _f("sim", choices=SENSOR_BACKENDS)
     replay_path: str = _f("")
     replay_speed: str = _f("recorded", choices=("recorded", "max"))
-    pipeline: str = _f("", choices=("",) + PIPELINE_KINDS)  # "" = edge.device.default_pipeline
+    pipeline: str = _f("")  # a kind of edge.device.PIPELINES (checked in _check_pipeline); "" = default_pipeline
 
 
 @dataclass(frozen=True)
@@ -479,6 +477,9 @@ def _check_pipeline(p: Profile, source: str) -> None:
 
     kind = p.projector.kind
     declared = p.sensor.pipeline
+    if declared and declared not in PIPELINES:  # the registry, read now: a kind added there is valid here
+        raise ProfileError(source, "sensor.pipeline",
+                           f"expected one of '', {', '.join(map(repr, PIPELINES))}, got {declared!r}")
     if declared and PIPELINES[declared].projector != kind:
         raise ProfileError(source, "sensor.pipeline",
                            f"expected a pipeline that reads a {kind!r} projector "

@@ -21,7 +21,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from edge.device import PIPELINE_KINDS, PIPELINES, pipeline_kind  # noqa: F401  (re-exported)
+from edge.device import PIPELINES, pipeline_kind  # noqa: F401  (re-exported)
 
 from .assembly import Stack
 from .result import DepthResult, MaskedCaptureFn
