@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from edge.device import CURTAINS, curtain_disparities, curtain_disparity  # noqa: F401  (the sweep plan; re-exported)
+from edge.device import CURTAINS, curtain_disparities, curtain_disparity, full_scale  # noqa: F401  (sweep plan re-exported)
 
 from .base import SensorInfo, slot_schedule
 from .sim import PacedSensor, sim_geometry
@@ -54,7 +54,7 @@ class CurtainSimSensor(PacedSensor):
         poses = -(-int(poses) // CURTAINS) * CURTAINS if poses > 0 else 0
         self._init_stream(profile, stacks=stacks, max_speed=max_speed, poses=poses, first_stack=first_stack)
 
-    def _devices(self, stack: int, scene) -> list:
+    def _devices(self, stack: int) -> list:
         from edge.source.curtain import CurtainDevice
 
         g = self.geometry
@@ -87,7 +87,7 @@ class CurtainSimSensor(PacedSensor):
         scene = self.scene(stack)
         cfg = CurtainConfig(width=cam.width, height=cam.height, line_width_px=LINE_WIDTH_PX,
                             ambient=float(self.profile.sim.ambient), sigma_r=cam.sigma_r, sigma_s=cam.sigma_s)
-        slots = curtain_slots(scene, self._devices(stack, scene), cfg, rng=rng, slots=len(self.code))
-        levels = (1 << cam.bits) - 1
+        slots = curtain_slots(scene, self._devices(stack), cfg, rng=rng, slots=len(self.code))
+        levels = int(full_scale(cam.bits))
         q = np.clip(np.rint(slots.astype(np.float64) * levels), 0, levels)
         return q.astype(np.uint8 if cam.bits == 8 else np.uint16)
