@@ -1,7 +1,7 @@
 """Imports only point down the pipeline, and packages import each other in no circle.
 
-The layers of ``edge/``, lowest first; a module may import from its own layer and any layer below
-it, never from one above (static ``import`` / ``from ... import`` statements anywhere in a file,
+The layers of ``edge/``, lowest first (imports point down: towards ``codes``); a module may import
+from its own layer and any lower layer, never from a higher one (static ``import`` / ``from ... import`` statements anywhere in a file,
 including the lazy ones inside functions; ``importlib`` look-ups by name, such as the pipeline
 registry `edge.device.PIPELINES`, are data and not counted)::
 
@@ -60,7 +60,8 @@ KNOWN_VIOLATIONS: set[tuple[str, str]] = {
     # issue 10 item 4 (engineer 10d): the evaluation sweep moves out of edge.sim into edge.eval
     ("edge.sim.sweep", "decode"),
     # engineer 10a: the replay backend reads MCAP (edge.io.mcap, edge.io.event_record); the fix is to
-    # move it to edge.io and the backend factory `edge.sensors.open_sensor` above edge.io
+    # move it to edge.io and the backend factory above edge.io, which moves the public (README)
+    # entry point `edge.sensors.open_sensor`: left for a decision
     ("edge.sensors.replay", "io"),
 }
 

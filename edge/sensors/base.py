@@ -6,7 +6,8 @@ profile has a light-source code of length ``L``, every one of those ``n + 2`` pr
 shown as ``L`` consecutive *slots* (the source code's on/off chips), so a stack holds
 ``(n + 2) * L`` camera frames.  EDC rounds re-capture *masked* versions of the same frames.
 
-Projector frame ids pack these three facts into one non-negative int::
+Projector frame ids (defined in `edge.device`, re-exported here) pack these three facts into one
+non-negative int::
 
     id = (edc_round << 16) | (slot << 8) | base
 
