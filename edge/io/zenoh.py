@@ -224,8 +224,9 @@ class DepthPublisher:
 
     ``on_update(partial: dict) -> Profile`` applies a validated config update in the runtime
     (raise ValueError with a reason to reject it); by default `edge.profiles.live_update` (the
-    service's config-freeze policy) is used and the new profile only stored here. It runs on a zenoh thread, serialised by a lock. ``session``: an
-    existing session to use (not closed by `close`); default: one opened from ``profile.zenoh``.
+    service's config-freeze policy) is used and the new profile only stored here. It runs on a
+    zenoh thread, serialised by a lock. ``session``: an existing session to use (not closed by
+    `close`); default: one opened from ``profile.zenoh``.
     ``on_reject(reason)`` is called for every rejection made here, before ``on_update`` (writes
     disabled, a payload too large or not JSON); ``rejected`` counts them too.
     """

@@ -25,14 +25,14 @@ from typing import Any, Callable, Iterable, Mapping
 
 import numpy as np
 
+from edge.profiles.live import LIVE_TABLES, ConfigRejected  # noqa: F401  (the config-freeze policy; re-exported)
+
 from ..sensors.base import EndOfStream, Frame, MaskedCapture, Sensor
 from .assembly import StackAssembler
 from .pipelines import make_pipeline
 from .result import DepthResult
 from .sdnotify import Notifier
 from .stack_queue import Closed, LatestQueue
-
-from edge.profiles.live import LIVE_TABLES, ConfigRejected  # noqa: F401  (the config-freeze policy; re-exported)
 
 #: The service stops when this many stacks in a row fail to decode (a persistent fault).
 MAX_CONSECUTIVE_DECODE_ERRORS = 10
