@@ -37,7 +37,7 @@ def test_foxglove_sink_advertises_channels_and_streams_depth_and_points():
     from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
     from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
 
-    from edge.runtime.foxglove_sink import FoxgloveSink
+    from edge.io.foxglove_sink import FoxgloveSink
     from edge.runtime.service import Service
     from edge.sensors.sim import SimSensor
 

@@ -124,13 +124,21 @@ def test_file_opens_with_mcap_summary_and_foxglove_schemas(recording, profile):
                              0, profile.geometry.focal_px, profile.geometry.cy, 0, 0, 1]
 
 
-def test_crc_mismatch_is_reported(tmp_path, recording):
-    data = bytearray(recording.read_bytes())
-    # flip a byte in the middle of the file (inside a compressed chunk)
-    data[len(data) // 2] ^= 0xFF
+def test_crc_mismatch_is_reported(tmp_path, profile):
+    # an uncompressed file: a flipped byte inside a frame's pixels still parses as MCAP, so the
+    # chunk's CRC is the only thing that can catch it (in a zstd chunk decompression fails first)
+    plain = tmp_path / "plain.mcap"
+    _record(plain, profile, compression="none")
+    data = bytearray(plain.read_bytes())
+    at = data.find(_image(17).tobytes())
+    assert at > 0
+    data[at + 100] ^= 0xFF
     bad = tmp_path / "flipped.mcap"
     bad.write_bytes(bytes(data))
-    with pytest.raises(TruncatedRecordingError, match=r"truncated or corrupt MCAP at byte \d+ of \d+"):
+    with open(bad, "rb") as f:  # without CRC checks every record still parses
+        assert sum(1 for _ in make_reader(f, validate_crcs=False).iter_messages()) == 2 + N_STACKS * (2 * PER_STACK + 5)
+    with pytest.raises(TruncatedRecordingError, match=r"truncated or corrupt MCAP at byte \d+ of \d+"
+                                                      r".*CRC mismatch"):
         list(RecordingReader(bad).frames())
 
 

@@ -48,7 +48,7 @@ def test_depth_to_points_back_projects_a_plane_and_skips_invalid():
 
 
 def _record(tmp_path, stacks=3):
-    from edge.runtime.recording import RecordingThread
+    from edge.io.recording import RecordingThread
     from edge.runtime.service import Service
     from edge.sensors.sim import SimSensor
 
@@ -124,7 +124,7 @@ def test_points_key_and_subscribe_ply(tmp_path, capsys):
     from edge.cli import main
     from edge.io.ply import read_ply
     from edge.profiles import apply_update
-    from edge.runtime.publish import ZenohSink
+    from edge.io.publish import ZenohSink
     from edge.runtime.service import Service
     from edge.sensors.sim import SimSensor
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-zenoh = pytest.importorskip("zenoh")
+import zenoh  # a hard dependency: a broken install fails here, it is not skipped
 
 ROOT = Path(__file__).resolve().parents[1]
 PROFILES = Path(__file__).parent / "data" / "profiles"
@@ -42,7 +42,7 @@ def _alone_depth(profile_path, device: str, code: int, stack: int) -> np.ndarray
     """The member's depth for ``stack`` with nobody else in the room (same profile, same code)."""
     from edge.profiles import apply_update, load_profile
     from edge.runtime.assembly import StackAssembler
-    from edge.runtime.pipeline import make_pipeline
+    from edge.runtime.pipelines import make_pipeline
     from edge.runtime.room import Member, room_profile
     from edge.sensors import open_sensor
     from edge.sensors.room_model import StaticMember, StaticRoom

@@ -46,7 +46,7 @@ def test_dlp_room_depth_matches_alone_with_the_joint_filter():
     from _service_helpers import TEST_PROFILE
     from edge.profiles import apply_update, load_profile
     from edge.runtime.assembly import StackAssembler
-    from edge.runtime.pipeline import make_pipeline
+    from edge.runtime.pipelines import make_pipeline
     from edge.runtime.room import Member, room_family_for, room_profile
     from edge.sensors import open_sensor
     from edge.sensors.room_model import StaticMember, StaticRoom

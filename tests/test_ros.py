@@ -102,8 +102,8 @@ def test_service_publishes_ros2_topics_through_a_router():
     """A service in ROS mode, an in-process zenoh router (rmw_zenohd's role) and a plain zenoh
     client: the client lists the liveliness tokens and decodes one sample of every topic."""
     from edge.profiles import apply_update
-    from edge.runtime.publish import ZenohSink
-    from edge.runtime.ros_sink import RosSink
+    from edge.io.publish import ZenohSink
+    from edge.io.ros_sink import RosSink
     from edge.runtime.service import Service
     from edge.sensors.sim import SimSensor
 

@@ -15,7 +15,7 @@ import pytest
 
 from _service_helpers import NumpyPipeline, load_test_profile
 
-zenoh = pytest.importorskip("zenoh")
+import zenoh  # a hard dependency: a broken install fails here, it is not skipped
 
 pytestmark = pytest.mark.routers
 
@@ -28,7 +28,7 @@ def free_port() -> int:
 
 def _service(device: str, **zenoh_settings):
     from edge.profiles import apply_update
-    from edge.runtime.publish import ZenohSink
+    from edge.io.publish import ZenohSink
     from edge.runtime.service import Service
     from edge.sensors.sim import SimSensor
 

@@ -12,7 +12,7 @@ import pytest
 
 from edge.profiles import apply_update, list_profiles, load_profile
 from edge.runtime.assembly import Stack
-from edge.runtime.pipeline import make_pipeline, pipeline_kind
+from edge.runtime.pipelines import make_pipeline, pipeline_kind
 from edge.sensors import open_sensor
 from edge.sensors.base import EventSlice
 from edge.sim import scene_names
@@ -142,7 +142,7 @@ def test_dots_pipeline_stereo_frames_match_reference_mode():
 
 
 def test_event_slice_message_round_trip():
-    from edge.runtime.event_record import event_slice_message, parse_event_slice
+    from edge.io.event_record import event_slice_message, parse_event_slice
     from edge.source.events import make_events
 
     ev = make_events([1, 5, 159], [0, 7, 119], [1000, 1001, 1500], [1, -1, 1])
@@ -183,8 +183,8 @@ class CorruptingSensor:
 
 def test_event_service_records_bad_input_counted_and_replays_bit_exact(tmp_path):
     from edge.io.mcap import RecordingReader
-    from edge.runtime.recording import RecordingThread
-    from edge.runtime.replay import replay_recording
+    from edge.io.recording import RecordingThread
+    from edge.io.replay import replay_recording
     from edge.runtime.service import Service
 
     p = small_event_profile()
@@ -246,7 +246,41 @@ def test_event_pipeline_counts_exactly_and_rejects_frames():
 
 
 def test_columns_pipeline_warm_up_compiles_before_capture():
-    service, status, _ = _run_cli_service("sim-dlp", stacks=1)
-    assert status["warm_up_s"] > 0.0  # the service decoded a synthetic stack before starting the sensor
+    """A cold start decodes no stale stack: the compile pause happens before the sensor starts."""
+    import time
+
+    from tests._service_helpers import load_test_profile
+
+    from edge.runtime.pipeline import DepthPipeline
+    from edge.runtime.service import Service
+    from edge.sensors.sim import SimSensor
+
+    compile_s = 2.5
+
+    class ColdPipeline(DepthPipeline):
+        """Like numba with an empty cache: the first decode compiles, unless warm_up() did it."""
+
+        compiled = False
+
+        def warm_up(self):
+            if not ColdPipeline.compiled:
+                time.sleep(compile_s)
+                ColdPipeline.compiled = True
+            return super().warm_up()
+
+        def process(self, stack, masked_capture=None):
+            if not ColdPipeline.compiled:
+                time.sleep(compile_s)
+                ColdPipeline.compiled = True
+            return super().process(stack, masked_capture)
+
+    # 30 fps: a stack every 0.8 s, real-time pacing; a compile pause inside capture would let about
+    # three stacks pass and the one-stack queue (the default) drop the stale ones
+    p = load_test_profile(camera={"rate_hz": 30.0}, projector={"rate_hz": 30.0})
+    sink = Collect()
+    status = Service(p, SimSensor(p), sinks=[sink], pipeline_factory=ColdPipeline).run(stacks=3)
+    assert ColdPipeline.compiled and status["warm_up"]["done"]
+    assert [r.stack for r in sink.results] == [0, 1, 2], [r.stack for r in sink.results]
+    assert status["stacks_dropped_stale"] == 0 and status["stacks_dropped"] == 0, status
     pipeline = make_pipeline(load_profile("sim-dlp"))
     assert pipeline.warm_up() < 5.0  # kernels are compiled once per process: a second warm-up is cheap

@@ -31,8 +31,8 @@ def _small_chunk_profile(tmp_path: Path) -> Path:
 
 def test_service_record_then_replay_bit_exact(tmp_path):
     from edge.io.mcap import RecordingReader
-    from edge.runtime.recording import RecordingThread
-    from edge.runtime.replay import replay_recording
+    from edge.io.recording import RecordingThread
+    from edge.io.replay import replay_recording
     from edge.runtime.service import Service
     from edge.sensors.sim import SimSensor
 
@@ -62,7 +62,7 @@ def test_committed_recording_replays_bit_exact():
 
 
 def test_replay_detects_a_changed_depth(tmp_path):
-    from edge.runtime import replay as replay_mod
+    from edge.io import replay as replay_mod
 
     out = tmp_path / "sim.mcap"
     r = edge("sim", "record", out, "--stacks", "2", "--profile", TEST_PROFILE)

@@ -57,7 +57,7 @@ def test_edge_run_subprocess_publishes_to_subscriber():
 
 def _service_with_zenoh(endpoint):
     from edge.profiles import apply_update
-    from edge.runtime.publish import ZenohSink
+    from edge.io.publish import ZenohSink
     from edge.runtime.service import Service
     from edge.sensors.sim import SimSensor
 

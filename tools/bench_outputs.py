@@ -40,8 +40,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from edge.profiles import apply_update, load_profile
     from edge.runtime.pipeline import DepthResult
-    from edge.runtime.publish import ZenohSink
-    from edge.runtime.ros_sink import RosSink
+    from edge.io.publish import ZenohSink
+    from edge.io.ros_sink import RosSink
 
     base = apply_update(load_profile(args.profile),
                         {"zenoh": {"listen": [f"tcp/127.0.0.1:{_free_port()}"], "connect": []}})
@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
         rows.append((f"+ sl/<device>/points (stride {base.points.stride})", timed([z])))
         rows.append(("+ ROS 2: Image x2, CameraInfo x2, PointCloud2, TF", timed([z, ros])))
         try:
-            from edge.runtime.foxglove_sink import FoxgloveSink
+            from edge.io.foxglove_sink import FoxgloveSink
 
             fox = FoxgloveSink(base, port=0)
         except ValueError as exc:

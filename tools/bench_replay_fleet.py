@@ -37,9 +37,9 @@ def main() -> None:
 
     from edge.commands.sim import record_simulation
     from edge.profiles import load_profile
-    from edge.runtime.fleet import require_ray, worker_env
-    from edge.runtime.fleet import replay_on_ray
-    from edge.runtime.replay_many import replay_one, replay_serial
+    from edge.io.fleet import require_ray, worker_env
+    from edge.io.fleet import replay_on_ray
+    from edge.io.replay_many import replay_one, replay_serial
 
     ray = require_ray("the benchmark")
     tmp = None

@@ -130,7 +130,7 @@ def main() -> int:
     size = out.stat().st_size if out.exists() else 0
     print(f"profile {profile.name}: {profile.camera.width}x{profile.camera.height} @ {profile.camera.rate_hz:g} fps, "
           f"{profile.code.name}, {profile.decoder.method} decoding; measured {duration:.1f} s after {args.warmup:g} s warm-up")
-    from edge.runtime.pipeline import stack_layout
+    from edge.device import stack_layout
 
     n, L = stack_layout(profile)
     offered = profile.camera.rate_hz / ((n + 2) * L)

@@ -105,7 +105,7 @@ def slots_table(out: Path, max_n: int, pixels: int) -> str:
 def _run(profile, room, stack: int, joint: bool):
     """(depth mm, truth depth mm) of one stack of ``profile`` in ``room``."""
     from edge.runtime.assembly import StackAssembler
-    from edge.runtime.pipeline import make_pipeline
+    from edge.runtime.pipelines import make_pipeline
     from edge.runtime.room import room_family_for
     from edge.sensors import open_sensor
 

@@ -233,7 +233,7 @@ class ConfigHarness:
 
         from edge.io.zenoh import make_config
         from edge.profiles import apply_update, load_profile
-        from edge.runtime.publish import ZenohSink
+        from edge.io.publish import ZenohSink
         from edge.runtime.service import Service
         from edge.sensors.sim import SimSensor
 

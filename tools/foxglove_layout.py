@@ -6,7 +6,7 @@ Built with foxglove-sdk's typed layout classes (``foxglove.layouts``): depth (tu
 0.2-3 m) and confidence images with the calibration topic, a 3D panel that follows the
 device's ``<name>_link`` frame and shows the point cloud (coloured by z), the depth image projected
 as a cloud and the frame tree, and the status as raw messages.  Topics are ``/<device>/...`` as
-in `edge.io.mcap_format` and `edge.runtime.foxglove_sink`; for another device, rerun with
+in `edge.io.mcap_format` and `edge.io.foxglove_sink`; for another device, rerun with
 ``--device``.  Import it in Foxglove with Layouts -> Import from file.
 """
 

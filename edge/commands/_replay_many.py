@@ -37,7 +37,7 @@ def is_many(args: argparse.Namespace) -> bool:
 
 
 def replay_many(args: argparse.Namespace) -> int:
-    from edge.runtime.replay_many import find_recordings, replay_serial, report_dict, summary_lines
+    from edge.io.replay_many import find_recordings, replay_serial, report_dict, summary_lines
 
     for flag, value in (("--recover", args.recover), ("--publish", args.publish), ("--out", args.out)):
         if value:
@@ -49,7 +49,7 @@ def replay_many(args: argparse.Namespace) -> int:
         raise ValueError(f"--report {args.report!r}: directory {os.path.dirname(args.report)!r} does not exist")
     use_ray = args.address is not None or (args.workers or 1) > 1
     if use_ray:
-        from edge.runtime.fleet import require_ray
+        from edge.io.fleet import require_ray
 
         require_ray("--workers > 1" if args.address is None else "--address")  # before any work
     paths = find_recordings([args.file, *args.more])
@@ -71,7 +71,7 @@ def replay_many(args: argparse.Namespace) -> int:
             bar.update(1)
 
         if use_ray:
-            from edge.runtime.fleet import replay_on_ray
+            from edge.io.fleet import replay_on_ray
 
             results = replay_on_ray(paths, workers=workers, address=args.address,
                                     expected_profile=expected, on_done=done, timings=timings)

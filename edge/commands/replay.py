@@ -35,7 +35,7 @@ def register(subparsers: Any) -> None:
 def replay(args: argparse.Namespace) -> int:
     from edge.commands._replay_many import is_many, replay_many
     from edge.io.mcap import RecordingError, recover
-    from edge.runtime.replay import replay_recording
+    from edge.io.replay import replay_recording
 
     if is_many(args):
         return replay_many(args)
@@ -64,7 +64,7 @@ def replay(args: argparse.Namespace) -> int:
         if args.publish:
             from edge.io.mcap import RecordingReader
             from edge.profiles import apply_update
-            from edge.runtime.publish import ZenohSink
+            from edge.io.publish import ZenohSink
 
             profile = RecordingReader(path).profile
             if profile is None:

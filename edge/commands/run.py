@@ -200,13 +200,13 @@ def build_service(profile, args: argparse.Namespace, *, sinks: list[Any] | None 
             zenoh_sink = _zenoh_sink(profile, service, session=room.session if room is not None else None)
             service.sinks.append(zenoh_sink)
         if profile.ros.enabled:
-            from edge.runtime.ros_sink import RosSink
+            from edge.io.ros_sink import RosSink
 
             ros_sink = RosSink(profile, session=zenoh_sink.publisher.session if zenoh_sink else None)
             # before the zenoh sink: it undeclares its entities before that sink closes the shared session
             service.sinks.insert(service.sinks.index(zenoh_sink) if zenoh_sink else len(service.sinks), ros_sink)
         if getattr(args, "foxglove", None) is not None:
-            from edge.runtime.foxglove_sink import FoxgloveSink
+            from edge.io.foxglove_sink import FoxgloveSink
 
             service.sinks.append(FoxgloveSink(profile, port=args.foxglove))
         if room is not None:  # the room leaves last (after the publisher that shares its session)
@@ -227,7 +227,7 @@ def build_service(profile, args: argparse.Namespace, *, sinks: list[Any] | None 
 
 def _recorder_factory(args: argparse.Namespace, profile, sensor):
     """Opens the recording; `Service.run` calls it once the sensor started, just before capture."""
-    from edge.runtime.recording import RecordingThread
+    from edge.io.recording import RecordingThread
 
     mb = getattr(args, "record_max_mb", None)
 
@@ -248,7 +248,7 @@ def _zenoh_sink(profile, service, session=None):
     import zenoh
 
     from edge.io.zenoh_check import check_endpoints, describe_zenoh_error, unreachable
-    from edge.runtime.publish import ZenohSink
+    from edge.io.publish import ZenohSink
 
     z = profile.zenoh
     try:
@@ -267,7 +267,7 @@ def _zenoh_sink(profile, service, session=None):
 
 def check_run_args(args: argparse.Namespace) -> None:
     """ValueError for out-of-range ``edge run`` options and for a --record target that must not be
-    written (see `edge.runtime.recording.check_record_path`)."""
+    written (see `edge.io.recording.check_record_path`)."""
     if args.stacks is not None and args.stacks < 1:
         raise ValueError(f"--stacks must be >= 1, got {args.stacks}")
     if args.seconds is not None and not args.seconds > 0:
@@ -287,7 +287,7 @@ def check_run_args(args: argparse.Namespace) -> None:
     if keep and not rotate:
         raise ValueError("--record-keep needs --record-max-mb or --record-max-seconds")
     if args.record:
-        from edge.runtime.recording import check_record_path
+        from edge.io.recording import check_record_path
 
         check_record_path(args.record, overwrite=getattr(args, "overwrite", False), rotate=rotate,
                           inputs=(args.replay,))
@@ -348,7 +348,7 @@ def _run_service(args: argparse.Namespace, holder: dict[str, Any], received: lis
     try:
         if received:
             service.stop()
-        from edge.runtime.pipeline import pipeline_kind
+        from edge.device import pipeline_kind
 
         coding = " + ".join(x for x in (service.profile.code.name, service.profile.code.source and
                                         f"source {service.profile.code.source}") if x) or "uncoded"

@@ -28,8 +28,8 @@ def record_simulation(out: str, profile, stacks: int, *, first_stack: int = 0, o
     """Render ``stacks`` stacks with the profile's simulated sensor (max speed; `open_sensor` "sim":
     columns, dots, curtain or event simulator) into ``out``; returns counts."""
     from edge.runtime.assembly import StackAssembler
-    from edge.runtime.pipeline import make_pipeline
-    from edge.runtime.recording import EdgeRecorder, frame_role
+    from edge.runtime.pipelines import make_pipeline
+    from edge.io.recording import EdgeRecorder, frame_role
     from edge.sensors import open_sensor
     from edge.sensors.base import EndOfStream
 

@@ -17,7 +17,11 @@ topic                       schema (encoding)           content
 ``/<device>/confidence``    foxglove.RawImage (pb)      ``mono8``, higher = more confident
 ``/<device>/output_info``   edge.OutputInfo (json)      one per depth map, just before it:
                                                         stack, sequence, timestamp_ns + extras
-``/<device>/stack``         edge.StackInfo (json)       per-stack metadata from the runtime
+``/<device>/stack``         edge.StackInfo (json)       one per decoded stack, after its depth:
+                                                        stack, sequence, frames, extra_frames,
+                                                        edc_rounds, received_ns, decode_ms,
+                                                        edc_round_ms, edc_capture_ms, stats
+                                                        (`edge.io.recording.stack_info`)
 ``/<device>/calibration``   foxglove.CameraCalibration  camera intrinsics from the profile
                             (pb)                        geometry (plumb_bob, zero distortion):
                                                         one at the start and one per depth map
@@ -32,7 +36,7 @@ topic                       schema (encoding)           content
                                                         column-wise x, y, t, p plus sequence,
                                                         stack, projector_frame, time window;
                                                         MCAP ``sequence`` = slice sequence
-                                                        (`edge.runtime.event_record`)
+                                                        (`edge.io.event_record`)
 ==========================  ==========================  =======================================
 
 Frame ids (`edge.io.ros.frame_ids`, REP 103 / 105, ``<name>`` = device with ``-`` -> ``_``):
@@ -40,7 +44,7 @@ images, calibration and points are in ``<name>_optical_frame``, so Foxglove proj
 image and draws the cloud in one frame tree.
 
 ``/<device>/config_change`` (edge.ConfigChange, json) holds every config update the running service
-accepted: time_ns, keys, update, profile (`edge.runtime.recording`).
+accepted: time_ns, keys, update, profile (`edge.io.recording`).
 
 Further topics are added through `edge.io.mcap_writer.Recorder.register_channel` (same
 ``/<device>/<leaf>`` naming); `topics` lists the standard ones that every recording has.
@@ -107,7 +111,16 @@ JSON_SCHEMAS: dict[str, dict[str, Any]] = {
             "timestamp_ns": {"type": "integer"},
         },
     },
-    "edge.StackInfo": {"type": "object", "properties": {"stack": {"type": "integer"}}},
+    "edge.StackInfo": {
+        "type": "object",
+        "properties": {
+            "stack": {"type": "integer"}, "sequence": {"type": "integer"}, "frames": {"type": "integer"},
+            "extra_frames": {"type": "integer"}, "edc_rounds": {"type": "integer"},
+            "received_ns": {"type": "integer"}, "decode_ms": {"type": "number"},
+            "edc_round_ms": {"type": "array", "items": {"type": "number"}},
+            "edc_capture_ms": {"type": "array", "items": {"type": "number"}}, "stats": {"type": "object"},
+        },
+    },
 }
 
 

@@ -234,12 +234,25 @@ class RecordingReader:
 
     @property
     def summary(self) -> Any:
-        """mcap's Summary (schemas, channels, statistics, chunk indexes) or None if not finalised."""
+        """mcap's Summary (schemas, channels, statistics, chunk indexes) or None if not finalised.
+
+        Parsed (CRCs checked) once per state of the file: the result is kept while the file's size,
+        modification time and inode stay the same, so `summary` and `complete` cost one parse."""
+        try:
+            st = os.stat(self.path)
+        except OSError:
+            return None
+        key = (st.st_size, st.st_mtime_ns, st.st_ino)
+        cached = getattr(self, "_summary_cache", None)
+        if cached is not None and cached[0] == key:
+            return cached[1]
         try:
             with open(self.path, "rb") as f:
-                return make_reader(f, validate_crcs=True).get_summary()
+                summary = make_reader(f, validate_crcs=True).get_summary()
         except (*CORRUPT_ERRORS, OSError):
-            return None
+            summary = None
+        self._summary_cache = (key, summary)
+        return summary
 
     @property
     def complete(self) -> bool:

@@ -19,7 +19,7 @@ thread may share one Recorder. The file object is flushed after every write, so 
 leaves every completed chunk on disk for `edge.io.mcap.recover`.
 
 Extra topics (``/<device>/<leaf>`` beyond the standard table of `edge.io.mcap_format`, e.g. the
-event slices of `edge.runtime.event_record`) go through the public `Recorder.register_channel` /
+event slices of `edge.io.event_record`) go through the public `Recorder.register_channel` /
 `Recorder.write_message` pair; subclasses need no private members.
 """
 

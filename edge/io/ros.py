@@ -1,7 +1,7 @@
 """ROS 2 over rmw_zenoh without a bridge: message types, REP 2016 type hashes, CDR, key expressions.
 
 Everything here follows rmw_zenoh's design document (docs/design.md of ros2/rmw_zenoh) and is pure
-(no zenoh session): `edge.runtime.ros_sink.RosSink` does the publishing.
+(no zenoh session): `edge.io.ros_sink.RosSink` does the publishing.
 
 * **Topic key expression** ``<domain_id>/<fully qualified topic without leading '/'>/<dds type
   name>/<type hash>``, e.g. ``0/sim_dlp/depth/image_rect_raw/sensor_msgs::msg::dds_::Image_/RIHS01_d31d...``.
@@ -37,6 +37,8 @@ import struct
 from typing import Any, Iterable, Mapping
 
 import numpy as np
+
+from edge.device import frame_ids, ros_name  # noqa: F401  (device naming; re-exported)
 
 __all__ = [
     "MESSAGES",
@@ -125,27 +127,9 @@ def _parse(t: str) -> tuple[str, int | None]:
     return m.group("base"), (None if size is None else (-1 if size == "" else int(size)))
 
 
-def ros_name(name: str) -> str:
-    """A ROS-legal name token from an edge device / profile name: every character outside
-    [A-Za-z0-9_] becomes '_', and a leading digit gets a '_' prefix (``sim-dlp`` -> ``sim_dlp``)."""
-    out = re.sub(r"[^A-Za-z0-9_]", "_", str(name))
-    if not out:
-        raise ValueError("expected a non-empty name for a ROS node / topic")
-    return "_" + out if out[0].isdigit() else out
-
-
 #: Rotation (x, y, z, w) of a REP 103 optical frame (x right, y down, z forward) in its body frame
 #: (x forward, y left, z up).
 OPTICAL_ROTATION = (-0.5, 0.5, -0.5, 0.5)
-
-
-def frame_ids(device: str) -> dict[str, str]:
-    """REP 103 / 105 frame ids of one device: ``base`` ``<name>_link`` (body: x forward, y left,
-    z up), ``optical`` ``<name>_optical_frame`` (the camera: depth, confidence, points,
-    calibration) and ``projector`` ``<name>_projector_optical_frame`` (the projector, or the
-    right camera of a stereo profile: the optical frame moved by +baseline_m along x)."""
-    n = ros_name(device)
-    return {"base": f"{n}_link", "optical": f"{n}_optical_frame", "projector": f"{n}_projector_optical_frame"}
 
 
 def dds_type_name(ros_type: str) -> str:

@@ -56,7 +56,8 @@ from typing import Any, Callable, Iterable, Mapping
 import numpy as np
 import zenoh
 
-from edge.profiles import Profile, apply_update, profile_to_dict
+from edge.profiles import Profile, profile_to_dict
+from edge.profiles.live import ConfigRejected, live_update
 from edge.profiles.settings import ZenohSettings
 
 from .zenoh_links import RouterLinks
@@ -88,10 +89,6 @@ MAX_REASON_CHARS = 300
 _DEPTH_ENCODING = zenoh.Encoding.APPLICATION_OCTET_STREAM.with_schema("16UC1")
 _CONF_ENCODING = zenoh.Encoding.APPLICATION_OCTET_STREAM.with_schema("mono8")
 _DTYPES = {"16UC1": np.dtype("<u2"), "mono8": np.dtype(np.uint8)}
-
-
-class ConfigRejected(ValueError):
-    """The service rejected a config update (or a config query failed); the message is its reason."""
 
 
 class _RuntimeRejected(Exception):
@@ -226,11 +223,12 @@ class DepthPublisher:
     """Service side of the key space: publishers, config queryable and liveliness token.
 
     ``on_update(partial: dict) -> Profile`` applies a validated config update in the runtime
-    (raise ValueError with a reason to reject it); by default `apply_update` is used and the new
-    profile only stored here. It runs on a zenoh thread, serialised by a lock. ``session``: an
-    existing session to use (not closed by `close`); default: one opened from ``profile.zenoh``.
+    (raise ValueError with a reason to reject it); by default `edge.profiles.live_update` (the
+    service's config-freeze policy) is used and the new profile only stored here. It runs on a
+    zenoh thread, serialised by a lock. ``session``: an existing session to use (not closed by
+    `close`); default: one opened from ``profile.zenoh``.
     ``on_reject(reason)`` is called for every rejection made here, before ``on_update`` (writes
-    disabled, a payload too large or not JSON, frozen tables); ``rejected`` counts them too.
+    disabled, a payload too large or not JSON); ``rejected`` counts them too.
     """
 
     def __init__(self, profile: Profile, *, on_update: Callable[[dict[str, Any]], Profile] | None = None,
@@ -349,9 +347,6 @@ class DepthPublisher:
             update = _parameters_to_update(params)
         if not isinstance(update, dict):
             raise ValueError(f"expected a JSON object of settings, got {type(update).__name__}")
-        frozen = [k for k in ("zenoh", "name") if k in update]
-        if frozen:
-            raise ValueError(f"{frozen[0]} cannot change while running (restart with another profile)")
         with self._lock:
             if self._on_update is not None:
                 try:
@@ -360,8 +355,8 @@ class DepthPublisher:
                     raise _RuntimeRejected(str(exc)) from exc
                 if not isinstance(new, Profile):
                     raise ValueError(f"on_update returned {type(new).__name__}, expected a Profile")
-            else:
-                new = apply_update(self._profile, update, source=f"{self.keys['config']} update")
+            else:  # the service's config-freeze policy (edge.profiles.live), without a service
+                new, _ = live_update(self._profile, update, source=f"{self.keys['config']} update")
             self._profile = new
         return new
 

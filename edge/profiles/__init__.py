@@ -8,6 +8,8 @@ API::
     profile_from_dict(d, source="<dict>") -> Profile     # same validation as files
     apply_update(profile, partial_dict) -> Profile       # merged + validated; old one untouched
     changed_keys(old, new) -> list[str]                  # dotted keys that differ
+    live_update(profile, partial) -> (Profile, changed)  # + the config-freeze policy (LIVE_TABLES)
+    ConfigRejected(ValueError)                           # an update the running device refuses
     ProfileError(ValueError)                             # .source, .key (dotted), .reason
 
 Access is by attribute: ``p.camera.rate_hz``, ``p.code.name``, ``p.geometry.doffs``,
@@ -25,6 +27,7 @@ from .files import (
     profile_dirs,
     profile_from_dict,
 )
+from .live import LIVE_TABLES, ConfigRejected, live_update
 from .settings import (
     CameraSettings,
     CodeSettings,
@@ -43,6 +46,9 @@ from .settings import (
 
 __all__ = [
     "DEFAULT_PROFILE",
+    "LIVE_TABLES",
+    "ConfigRejected",
+    "live_update",
     "Profile",
     "ProfileError",
     "CameraSettings",

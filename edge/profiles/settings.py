@@ -14,6 +14,9 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     backend = "sim"                       # sim | replay | oak | event
     replay_path = ""                      # MCAP file for the replay backend ("" = given on the CLI)
     replay_speed = "recorded"             # recorded | max
+    pipeline = ""                         # columns | dots | event-dots | curtain (edge.device.PIPELINES);
+                                          # "" = from projector.kind: columns -> columns, line -> curtain,
+                                          # dots -> event-dots with backend "event", else dots
 
     [projector]
     kind = "columns"                      # columns (DLP code patterns) | dots | line
@@ -85,7 +88,7 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     lead_frames = 2                       # emitter command this many frames ahead (latency)
     emitter_control = "script"            # script (on-device Script node per frame) | host
 
-    [ros]                                 # ROS 2 over rmw_zenoh (edge.runtime.ros_sink)
+    [ros]                                 # ROS 2 over rmw_zenoh (edge.io.ros_sink)
     enabled = false                       # or `edge run --ros`; domain from ROS_DOMAIN_ID (default 0)
     router = "tcp/localhost:7447"         # the rmw_zenohd router to connect to
     node = ""                             # ROS node name ("" = device name with '-' -> '_')
@@ -111,6 +114,8 @@ import re
 import typing
 from dataclasses import dataclass, field
 from typing import Any, Mapping
+
+from edge.device import PIPELINES
 
 __all__ = [
     "ProfileError",
@@ -203,6 +208,7 @@ class SensorSettings:
     backend: str = _f("sim", choices=SENSOR_BACKENDS)
     replay_path: str = _f("")
     replay_speed: str = _f("recorded", choices=("recorded", "max"))
+    pipeline: str = _f("")  # a kind of edge.device.PIPELINES (checked in _check_pipeline); "" = default_pipeline
 
 
 @dataclass(frozen=True)
@@ -478,6 +484,14 @@ def _check_pipeline(p: Profile, source: str) -> None:
     from edge.codes import get_code
 
     kind = p.projector.kind
+    declared = p.sensor.pipeline
+    if declared and declared not in PIPELINES:  # the registry, read now: a kind added there is valid here
+        raise ProfileError(source, "sensor.pipeline",
+                           f"expected one of '', {', '.join(map(repr, PIPELINES))}, got {declared!r}")
+    if declared and PIPELINES[declared].projector != kind:
+        raise ProfileError(source, "sensor.pipeline",
+                           f"expected a pipeline that reads a {kind!r} projector "
+                           f"({', '.join(repr(k) for k, s in PIPELINES.items() if s.projector == kind)}), got {declared!r}")
     methods = decoder_methods(kind)
     if p.decoder.method not in methods:
         raise ProfileError(source, "decoder.method",

@@ -7,7 +7,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from .pipeline import DepthResult
+from .result import DepthResult
 
 
 class ConsoleSink:

@@ -9,7 +9,7 @@ lies on the scanned curtain (light of another device's laser, ambient light and 
 Published (exactly like a column stack's output):
 
 * depth: uint16 mm, the scanned curtain's depth ``focal_px * baseline_m / (d + doffs)`` at detected
-  pixels, 0 elsewhere; the curtain of stack k has disparity `edge.sensors.curtain.curtain_disparity`
+  pixels, 0 elsewhere; the curtain of stack k has disparity `edge.device.curtain_disparity`
   (``CURTAINS`` curtains swept across the profile's disparity band, near to far, repeating);
 * confidence: uint8, the matched-filter correlation (0..1 -> 0..255) at detected pixels, 0 elsewhere.
 """
@@ -20,10 +20,11 @@ import time
 
 import numpy as np
 
-from ..sensors.base import slot_schedule
+from edge.device import DeviceModel
+
 from .assembly import Stack
 from .depth import confidence_to_u8, disparity_to_depth_mm
-from .pipeline import DepthResult, max_value
+from .result import DepthResult
 
 
 class CurtainPipeline:
@@ -37,10 +38,15 @@ class CurtainPipeline:
             raise ValueError(f"profile {profile.name!r}: a line projector is decoded by decoder.method = "
                              f"'curtain', got {profile.decoder.method!r}")
         self.profile = profile
-        self.source = profile.code.source or "1"
-        self.schedule = slot_schedule(len(self.source))
+        self.device = DeviceModel.from_profile(profile)
+        self.source = self.device.source
+        self.schedule = self.device.schedule
         self.geometry = profile.geometry
-        self.full_scale = float(max_value(profile.camera.bits))
+        self.full_scale = self.device.full_scale
+
+    def warm_up(self) -> float:
+        """Nothing to compile (the matched filter is numpy); returns 0."""
+        return 0.0
 
     def detect(self, images: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(L, H, W) slot frames -> (detected bool (H, W), correlation float32 (H, W))."""
@@ -56,8 +62,6 @@ class CurtainPipeline:
         return ds.accepted[0], ds.correlation[0]
 
     def process(self, stack: Stack, masked_capture=None) -> DepthResult:
-        from edge.sensors.curtain import curtain_disparity
-
         t0 = time.perf_counter()
         ids = np.array([f.projector_frame for f in stack.frames], dtype=np.int64)
         if not np.array_equal(ids, self.schedule):
@@ -65,7 +69,7 @@ class CurtainPipeline:
                              f"got ids {ids.tolist()[:8]}")
         images = np.stack([f.image for f in stack.frames])
         detected, corr = self.detect(images)
-        d = curtain_disparity(self.profile, stack.stack)
+        d = self.device.curtain_disparity(stack.stack)
         disparity = np.where(detected, np.float64(d), np.nan)
         depth = disparity_to_depth_mm(disparity, self.geometry)
         x = np.arange(depth.shape[1], dtype=np.int32)[None, :]

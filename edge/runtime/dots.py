@@ -8,7 +8,7 @@ and end the same way: a dot image -> disparity by block matching against the ref
 Frame cameras (``oak-d-pro``): the L slot frames of the stack are de-spread
 (`edge.source.matched_filter.despread`, threshold ``decoder.min_confidence``, minimum amplitude
 ``decoder.min_contrast`` of full scale) into the own-projector dot image; ambient light and foreign
-projectors cancel.  The reference is the projector's dot pattern (`edge.sensors.dots.dot_pattern`)
+projectors cancel.  The reference is the projector's dot pattern (`edge.device.DeviceModel.dot_pattern`)
 for a simulated device (frames ``(H, W)``), or the de-spread right image for a stereo device (the
 OAK in stereo mode: frames ``(H, 2W)``, left | right mono side by side).  Confidence: the block's dot support, the fraction of its pixels that
 passed the matched filter relative to the projected dot density (clipped to [0, 1]).
@@ -31,10 +31,11 @@ import time
 import cv2
 import numpy as np
 
-from ..sensors.base import slot_schedule
+from edge.device import DOT_DENSITY, DeviceModel, check_dot_profile
+
 from .assembly import Stack
 from .depth import confidence_to_u8, disparity_to_depth_mm
-from .pipeline import DepthResult, max_value
+from .result import DepthResult
 
 #: SGBM block size (pixels, odd)
 BLOCK_SIZE = 11
@@ -71,8 +72,6 @@ class _SlotPipeline:
     """Shared set-up of the "slots" pipelines."""
 
     def __init__(self, profile, expected_kind: str) -> None:
-        from edge.sensors.dots import check_dot_profile
-
         if profile.projector.kind != "dots":
             raise ValueError(f"{type(self).__name__} needs projector.kind = 'dots', profile {profile.name!r} "
                              f"has {profile.projector.kind!r}")
@@ -81,16 +80,21 @@ class _SlotPipeline:
                              f"'block-match', got {profile.decoder.method!r}")
         check_dot_profile(profile)
         self.profile = profile
+        self.device = DeviceModel.from_profile(profile)
         self.kind = expected_kind
-        self.source = profile.code.source or "1"
-        self.source_length = len(self.source)
-        self.schedule = slot_schedule(self.source_length)
+        self.source = self.device.source
+        self.source_length = self.device.source_length
+        self.schedule = self.device.schedule
         self.geometry = profile.geometry
-        self.full_scale = float(max_value(profile.camera.bits))
+        self.full_scale = self.device.full_scale
         self.band = (int(profile.decoder.min_disparity), int(profile.decoder.max_disparity))
         if self.band[1] <= self.band[0]:
             raise ValueError(f"profile {profile.name!r}: block matching needs decoder.max_disparity > "
                              f"min_disparity, got {self.band[0]}..{self.band[1]}")
+
+    def warm_up(self) -> float:
+        """Nothing to compile (OpenCV block matching); the reference pattern is built in ``__init__``."""
+        return 0.0
 
     def check_ids(self, stack: Stack) -> None:
         ids = np.array([f.projector_frame for f in stack.frames], dtype=np.int64)
@@ -118,10 +122,8 @@ class DotsPipeline(_SlotPipeline):
     """Frame-camera dot projector (see module docstring).  ``process(stack) -> DepthResult``."""
 
     def __init__(self, profile) -> None:
-        from edge.sensors.dots import dot_pattern
-
         super().__init__(profile, "dots")
-        self.reference = dot_pattern(profile).astype(np.float32)
+        self.reference = self.device.dot_pattern().astype(np.float32)
 
     def dot_image(self, images: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(L, H, W') slot images -> (own dot amplitude float32 (H, W'), correlation float32 (H, W'))."""
@@ -152,8 +154,6 @@ class DotsPipeline(_SlotPipeline):
         else:
             left, reference = amp, self.reference
         disparity = self.match(left, reference)
-        from edge.sensors.dots import DOT_DENSITY
-
         confidence = np.clip(box_mean(left > 0) / np.float32(DOT_DENSITY), 0.0, 1.0)
         return self.result(stack, disparity, confidence, t0, {"dot_pixels": int(np.count_nonzero(left))})
 
@@ -162,16 +162,13 @@ class EventDotsPipeline(_SlotPipeline):
     """Event-camera dot projector (see module docstring).  ``process(stack) -> DepthResult``."""
 
     def __init__(self, profile) -> None:
-        from edge.sensors.dots import dot_pattern
-        from edge.sensors.event import slot_us
-
         super().__init__(profile, "event-dots")
         if "0" not in self.source:
             raise ValueError(f"profile {profile.name!r}: an event sensor needs a source code with a 0 chip, "
                              f"got {self.source!r}")
-        self.slot_us = slot_us(profile)
+        self.slot_us = self.device.slot_us
         self.guard_us = self.slot_us // 4
-        self.reference = dot_pattern(profile).astype(np.float32)
+        self.reference = self.device.dot_pattern().astype(np.float32)
 
     def clean(self, slices) -> tuple[np.ndarray, dict[str, int]]:
         """Concatenate the slices' events, dropping (and counting) events outside their slice's window

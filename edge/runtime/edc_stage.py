@@ -15,10 +15,13 @@ Output, consistent column and confidence:
   chain of neighbours links it to verified pixels (`AdaptiveScan` ``keep_guess``, the soft
   columns are the round-1 guesses), so EDC never reports fewer correct pixels than the soft
   decode it checks;
-* confidence: the soft decoder's confidence where the published column IS the soft decoder's
-  column; 1.0 where the published column is a verified codeword that the soft decoder did not
-  give (a later round's decode, or a soft-invalid pixel) -- the hard decoder's confidence of an
-  exact codeword (d1 = 0); 0 where invalid.
+* confidence, always that of the published column: the soft decoder's confidence where the
+  published column IS the soft decoder's column; 1.0 where it is a verified codeword (CRC /
+  syndrome check and neighbour support) that the soft decoder did not give (a later round's
+  decode, or a soft-invalid pixel) -- the hard decoder's confidence of an exact codeword (d1 = 0);
+  `GUESS_CONFIDENCE` (the lowest valid confidence, 1 on the wire) where it is an unverified
+  later-round guess that the soft decoder did not give (only neighbour support vouches for it);
+  0 where invalid.
 
 Without a masked-capture path (a backend that cannot re-project) the stage runs round 1 only.
 `EdcOutcome` also carries the per-round decode and capture times (the service's status).
@@ -33,6 +36,25 @@ from typing import Any
 import numpy as np
 
 
+#: Confidence of a published column that neither the soft decoder gave nor the check verified (a
+#: later round's nearest-codeword guess kept by neighbour support): the lowest valid one (1/255).
+GUESS_CONFIDENCE = np.float32(1.0 / 255.0)
+
+
+def published_confidence(column: np.ndarray, verified: np.ndarray, soft_column: np.ndarray,
+                         soft_confidence: np.ndarray) -> np.ndarray:
+    """float32 (H, W) confidence of each published ``column`` (see module docstring).
+
+    column: (H, W) int32 published columns (-1 invalid); verified: (H, W) bool, the column passed
+    the check; soft_column / soft_confidence: (H, W) the soft decoder's column (-1 invalid) and
+    its confidence in [0, 1].
+    """
+    valid = column >= 0
+    same = valid & (column == soft_column)
+    other = np.where(verified & valid, np.float32(1.0), np.where(valid, GUESS_CONFIDENCE, np.float32(0.0)))
+    return np.where(same, soft_confidence, other).astype(np.float32)
+
+
 @dataclass(frozen=True, eq=False)
 class EdcOutcome:
     """Result of the EDC stage for one stack.
@@ -40,7 +62,8 @@ class EdcOutcome:
     column: (H, W) int32 (-1 invalid); confidence: (H, W) float32 in [0, 1]; rounds: rounds run
     (1 = the check of the stack itself); extra: masked frames captured (capture order);
     round_ms: decode milliseconds of each round (round 1 included); capture_ms: milliseconds
-    spent waiting for each masked round's frames; open_pixels: pixels still open after each round.
+    spent waiting for each masked round's frames; open_pixels: pixels still open after each round;
+    verified: (H, W) bool, the published column passed the check (the rest are guesses).
     """
 
     column: np.ndarray
@@ -50,6 +73,7 @@ class EdcOutcome:
     round_ms: tuple[float, ...]
     capture_ms: tuple[float, ...]
     open_pixels: tuple[int, ...]
+    verified: np.ndarray | None = None
 
 
 def _stacked(images: list) -> np.ndarray:
@@ -104,8 +128,10 @@ def run_adaptive(pipeline: Any, stack: Any, images: np.ndarray, column: np.ndarr
         edc_round += 1
     result = scan.result()
     col = np.asarray(result.column, dtype=np.int32)
-    same = (col >= 0) & (col == column)
-    conf = np.where(same, confidence, np.where(col >= 0, np.float32(1.0), np.float32(0.0))).astype(np.float32)
+    verified = np.asarray(result.verified if result.verified is not None else result.round_of > 0, dtype=bool)
+    verified &= col >= 0
+    conf = published_confidence(col, verified, column, confidence)
     return EdcOutcome(column=col, confidence=conf, rounds=len(result.rounds), extra=extra,
                       round_ms=tuple(round(t, 3) for t in round_ms),
-                      capture_ms=tuple(round(t, 3) for t in capture_ms), open_pixels=tuple(open_px))
+                      capture_ms=tuple(round(t, 3) for t in capture_ms), open_pixels=tuple(open_px),
+                      verified=verified)

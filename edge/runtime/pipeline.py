@@ -11,6 +11,8 @@
    (`edge.edc`), which asks ``masked_capture`` for the next masked frames;
 5. column -> disparity -> depth (`edge.runtime.depth.column_to_depth_mm`, profile geometry).
 
+It is the ``columns`` kind of `edge.device.PIPELINES` (built by `edge.runtime.pipelines.make_pipeline`).
+
 Nothing here depends on time, threads or randomness, so `edge replay` calls the same `process`
 on recorded frames and gets the same depth bit for bit.  Call it from ONE thread (numba parallel
 kernels).
@@ -19,122 +21,15 @@ kernels).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
-from typing import Any, Callable
 
 import numpy as np
 
-from ..sensors.base import Frame, layout_schedule
+from edge.device import DeviceModel
+
+from ..sensors.base import Frame
 from .assembly import Stack
 from .depth import column_to_depth_mm, confidence_to_u8
-
-#: A callable that captures masked frames for the EDC loop: (stack id, round, projector rows (m, Wp)) -> frames
-MaskedCaptureFn = Callable[[int, int, np.ndarray], list[Frame]]
-
-
-@dataclass(frozen=True, eq=False)
-class DepthResult:
-    """One depth map and what produced it.
-
-    depth_mm: (H, W) uint16 millimetres, 0 = invalid.  confidence: (H, W) uint8, 255 = most
-    confident, 0 where invalid.  column: (H, W) int32 decoded codeword index, -1 invalid.
-    stack / sequence: stack id and sequence number of its first frame; timestamp_ns: sensor
-    time of its last frame; received_ns: host time (time.time_ns) the last frame arrived;
-    decode_s: seconds spent in `process`; edc_rounds: adaptive rounds run; extra_frames: frames
-    captured by those rounds (in capture order, so they can be recorded and replayed); stats:
-    per-stack counters that the service sums into its status (e.g. ``events_out_of_order``);
-    edc_round_ms: decode milliseconds of each EDC round (round 1 = the check of the stack);
-    edc_capture_ms: milliseconds waited for each masked round's frames; stack_frames: camera
-    frames of the stack itself.
-    """
-
-    stack: int
-    sequence: int
-    timestamp_ns: int
-    received_ns: int
-    depth_mm: np.ndarray
-    confidence: np.ndarray
-    column: np.ndarray
-    decode_s: float = 0.0
-    edc_rounds: int = 0
-    extra_frames: tuple[Frame, ...] = field(default=())
-    stats: dict[str, int] = field(default_factory=dict)
-    geometry: Any = None  # the geometry the depth was computed with (set by the service; None = profile's)
-    edc_round_ms: tuple[float, ...] = ()
-    edc_capture_ms: tuple[float, ...] = ()
-    stack_frames: int = 0
-
-    @property
-    def frames_per_depth_map(self) -> int:
-        """Camera frames this depth map used: the stack's plus the EDC rounds' masked frames."""
-        return int(self.stack_frames) + len(self.extra_frames)
-
-    @property
-    def valid_fraction(self) -> float:
-        return float(np.count_nonzero(self.depth_mm)) / max(1, self.depth_mm.size)
-
-    def median_depth_mm(self) -> float:
-        d = self.depth_mm[self.depth_mm > 0]
-        return float(np.median(d)) if d.size else float("nan")
-
-
-#: Pipeline kinds: coded column patterns, dot projector + frame camera, dot projector + event
-#: sensor, light curtain.
-PIPELINE_KINDS = ("columns", "dots", "event-dots", "curtain")
-
-
-def pipeline_kind(profile) -> str:
-    """Which processing chain a profile needs (see `make_pipeline`).
-
-    ``projector.kind`` columns -> "columns"; line -> "curtain"; dots -> "event-dots" when the
-    profile's sensor is an event sensor (``sensor.backend = "event"``), else "dots".
-    """
-    kind = profile.projector.kind
-    if kind == "columns":
-        return "columns"
-    if kind == "line":
-        return "curtain"
-    return "event-dots" if profile.sensor.backend == "event" else "dots"
-
-
-def stack_layout(profile) -> tuple[int, int]:
-    """(n code frames, source-code length L) of a profile's stacks (n = 1 without a code)."""
-    from edge.codes import get_code
-
-    n = get_code(profile.code.name).n if profile.code.name else 1
-    return n, max(1, len(profile.code.source))
-
-
-def profile_layout(profile) -> str:
-    """`edge.sensors.base` stack layout of a profile: "stack" for column codes, else "slots"."""
-    return "stack" if pipeline_kind(profile) == "columns" else "slots"
-
-
-def profile_schedule(profile) -> np.ndarray:
-    """Projector frame ids of one stack of ``profile`` (see `edge.sensors.base.layout_schedule`)."""
-    n, L = stack_layout(profile)
-    return layout_schedule(profile_layout(profile), n, L)
-
-
-def make_pipeline(profile):
-    """The processing chain for ``profile``: `DepthPipeline` (columns), `edge.runtime.dots.DotsPipeline`,
-    `edge.runtime.dots.EventDotsPipeline` or `edge.runtime.curtain.CurtainPipeline`.  Every one has
-    ``profile``, ``schedule`` and ``process(stack, masked_capture=None) -> DepthResult``."""
-    kind = pipeline_kind(profile)
-    if kind == "columns":
-        return DepthPipeline(profile)
-    if kind == "curtain":
-        from .curtain import CurtainPipeline
-
-        return CurtainPipeline(profile)
-    from .dots import DotsPipeline, EventDotsPipeline
-
-    return EventDotsPipeline(profile) if kind == "event-dots" else DotsPipeline(profile)
-
-
-def max_value(bits: int) -> int:
-    return (1 << int(bits)) - 1
-
+from .result import DepthResult, MaskedCaptureFn
 
 class DepthPipeline:
     """Processing chain for one profile (see module docstring).  Build once, call `process` per stack."""
@@ -147,13 +42,14 @@ class DepthPipeline:
                 f"DepthPipeline decodes 'columns' projectors (coded patterns); profile {profile.name!r} "
                 f"has projector.kind = {profile.projector.kind!r} (use make_pipeline)")
         self.profile = profile
+        self.device = DeviceModel.from_profile(profile)
         self.code = get_code(profile.code.name)
-        self.n, self.source_length = stack_layout(profile)
-        self.schedule = profile_schedule(profile)
+        self.n, self.source_length = self.device.n_code_frames, self.device.source_length
+        self.schedule = self.device.schedule
         self.geometry = profile.geometry
         self.stripe = int(profile.projector.stripe)
         self.columns = min(self.code.size, -(-int(profile.projector.width) // self.stripe))
-        self.full_scale = float(max_value(profile.camera.bits))
+        self.full_scale = self.device.full_scale
         self.source_bits = (np.array([c == "1" for c in profile.code.source], dtype=bool)
                             if profile.code.source else None)
         if self.source_bits is not None and self.source_bits.all():
@@ -239,7 +135,7 @@ class DepthPipeline:
                          np.asarray(decoded.confidence, dtype=np.float32), None)
         return time.perf_counter() - t0
 
-    def validity(self, decoded, white: np.ndarray, black: np.ndarray) -> np.ndarray:
+    def validity(self, decoded) -> np.ndarray:
         """(H, W) bool: the decoder's valid mask (it applies the profile's contrast and confidence
         thresholds) and a non-negative column."""
         return np.asarray(decoded.valid, dtype=bool) & (np.asarray(decoded.column) >= 0)
@@ -250,7 +146,7 @@ class DepthPipeline:
         images = self.stacked(stack.frames)
         codes, white, black = images[: self.n], images[self.n], images[self.n + 1]
         decoded = self.decode(codes, white, black)
-        valid = self.validity(decoded, white, black)
+        valid = self.validity(decoded)
         column = np.where(valid, np.asarray(decoded.column, dtype=np.int32), np.int32(-1))
         confidence = np.asarray(decoded.confidence, dtype=np.float32)
         rounds, extra, round_ms, capture_ms = 0, (), (), ()

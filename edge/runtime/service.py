@@ -25,22 +25,19 @@ from typing import Any, Callable, Iterable, Mapping
 
 import numpy as np
 
+from edge.profiles.live import LIVE_TABLES, ConfigRejected  # noqa: F401  (the config-freeze policy; re-exported)
+
 from ..sensors.base import EndOfStream, Frame, MaskedCapture, Sensor
 from .assembly import StackAssembler
-from .pipeline import DepthResult, make_pipeline
+from .pipelines import make_pipeline
+from .result import DepthResult
 from .sdnotify import Notifier
 from .stack_queue import Closed, LatestQueue
 
-#: Profile tables that may change while the service runs (applied between stacks).
-LIVE_TABLES = ("decoder", "edc", "geometry", "oak")
 #: The service stops when this many stacks in a row fail to decode (a persistent fault).
 MAX_CONSECUTIVE_DECODE_ERRORS = 10
 #: Stacks decoded after a live config change before its cost is checked against the stack budget.
 BUDGET_CHECK_STACKS = 3
-
-
-class ConfigRejected(ValueError):
-    """A config update the running service refuses; the message is the reason."""
 
 
 @dataclasses.dataclass
@@ -138,19 +135,15 @@ class Service:
     def update_config(self, update: Mapping[str, Any]):
         """Validate a partial profile update and schedule it for the next stack.
 
-        Only the tables in `LIVE_TABLES` may change; anything else, or an invalid value, raises
-        `ConfigRejected` / `edge.profiles.ProfileError` (both ValueError) and the running
-        configuration is kept.  Returns the new profile.
+        Only the tables in `LIVE_TABLES` may change (`edge.profiles.live_update`, the one
+        config-freeze policy); anything else, or an invalid value, raises `ConfigRejected` /
+        `edge.profiles.ProfileError` (both ValueError) and the running configuration is kept.
+        Returns the new profile.
         """
-        from edge.profiles import apply_update, changed_keys, profile_to_dict
+        from edge.profiles import live_update, profile_to_dict
 
         try:
-            new = apply_update(self.profile, update, source="config update")
-            changed = changed_keys(self.profile, new)
-            frozen = [k for k in changed if k.split(".")[0] not in LIVE_TABLES]
-            if frozen:
-                raise ConfigRejected(
-                    f"cannot change {', '.join(frozen)} while running (live tables: {', '.join(LIVE_TABLES)})")
+            new, changed = live_update(self.profile, update, source="config update")
             self._check_warm(self.profile, new)
             if "oak" in {k.split(".")[0] for k in changed}:
                 apply = getattr(self.sensor, "apply_settings", None)
@@ -436,7 +429,7 @@ class Service:
         """Exposure, gain, projector power, serial, firmware, edge version and intrinsics (what a
         RealSense / depthai user expects in a status message)."""
         from edge import __version__ as version
-        from edge.io.ros import frame_ids
+        from edge.device import frame_ids
 
         dev = self._sensor_device()
         g = getattr(self.pipeline, "geometry", None) or self.profile.geometry

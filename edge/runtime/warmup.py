@@ -38,7 +38,7 @@ def switchable_variants(profile) -> list[tuple[str, Any]]:
     """
     from edge.profiles import apply_update
 
-    from .pipeline import pipeline_kind
+    from edge.device import pipeline_kind
 
     if pipeline_kind(profile) != "columns":
         return []

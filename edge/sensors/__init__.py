@@ -29,12 +29,14 @@ def open_sensor(profile, backend: str | None = None, *, replay_path: str | None 
 
     ``sim`` picks the simulator that fits the profile's projector: `SimSensor` (columns),
     `DotsSimSensor` (dots; a stand-in for the OAK's IR dot projector), `CurtainSimSensor` (line);
-    for an event profile (``sensor.backend = "event"``) ``sim`` and ``event`` both mean
+    for an event profile (pipeline kind ``event-dots``, `edge.device.pipeline_kind`) ``sim`` and ``event`` both mean
     `EventSimSensor`.
     """
+    from edge.device import pipeline_kind
+
     backend = backend or profile.sensor.backend
     kind = profile.projector.kind
-    if backend == "sim" and kind == "dots" and profile.sensor.backend == "event":
+    if backend == "sim" and pipeline_kind(profile) == "event-dots":
         backend = "event"
     if backend == "sim":
         if kind == "dots":

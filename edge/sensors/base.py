@@ -6,7 +6,8 @@ profile has a light-source code of length ``L``, every one of those ``n + 2`` pr
 shown as ``L`` consecutive *slots* (the source code's on/off chips), so a stack holds
 ``(n + 2) * L`` camera frames.  EDC rounds re-capture *masked* versions of the same frames.
 
-Projector frame ids pack these three facts into one non-negative int::
+Projector frame ids (defined in `edge.device`, re-exported here) pack these three facts into one
+non-negative int::
 
     id = (edc_round << 16) | (slot << 8) | base
 
@@ -32,97 +33,15 @@ the service treat both alike.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import NamedTuple, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-#: base id of the white (projector fully on) calibration frame
-WHITE = 0xFE
-#: base id of the black (projector fully off) calibration frame
-BLACK = 0xFF
-#: largest number of code frames an id can address (bases 0..MAX_CODE_FRAMES-1)
-MAX_CODE_FRAMES = 0xFE
-MAX_SLOTS = 0x100
-MAX_EDC_ROUND = 0x7FFF
-
-
-class ProjectorFrame(NamedTuple):
-    """A decoded projector frame id (see module docstring)."""
-
-    base: int
-    slot: int
-    edc_round: int
-
-    @property
-    def is_white(self) -> bool:
-        return self.base == WHITE
-
-    @property
-    def is_black(self) -> bool:
-        return self.base == BLACK
-
-    @property
-    def code_index(self) -> int:
-        """Code frame index 0..n-1, or -1 for a calibration frame."""
-        return self.base if self.base < MAX_CODE_FRAMES else -1
-
-
-def projector_frame_id(base: int, *, slot: int = 0, edc_round: int = 0) -> int:
-    """Pack (base, slot, edc_round) into one projector frame id.
-
-    base: code frame index 0..253, `WHITE` or `BLACK`; slot: 0..255; edc_round: 0..32767.
-    """
-    if not 0 <= base <= BLACK:
-        raise ValueError(f"projector frame base must be a code frame 0..{MAX_CODE_FRAMES - 1}, WHITE or BLACK, got {base}")
-    if not 0 <= slot < MAX_SLOTS:
-        raise ValueError(f"source-code slot must be in 0..{MAX_SLOTS - 1}, got {slot}")
-    if not 0 <= edc_round <= MAX_EDC_ROUND:
-        raise ValueError(f"EDC round must be in 0..{MAX_EDC_ROUND}, got {edc_round}")
-    return (int(edc_round) << 16) | (int(slot) << 8) | int(base)
-
-
-def parse_projector_frame(frame_id: int) -> ProjectorFrame:
-    """Inverse of `projector_frame_id`."""
-    frame_id = int(frame_id)
-    if frame_id < 0 or frame_id >> 16 > MAX_EDC_ROUND:
-        raise ValueError(f"projector frame id must be in 0..{(MAX_EDC_ROUND << 16) | 0xFFFF}, got {frame_id}")
-    return ProjectorFrame(frame_id & 0xFF, (frame_id >> 8) & 0xFF, frame_id >> 16)
-
-
-def stack_schedule(n_code_frames: int, source_length: int = 1, *, edc_round: int = 0) -> np.ndarray:
-    """Projector frame ids of one stack, in capture order: (n + 2) * L int64.
-
-    Code frames 0..n-1, then WHITE, then BLACK; each expanded into ``source_length`` slots.
-    """
-    if not 1 <= n_code_frames <= MAX_CODE_FRAMES:
-        raise ValueError(f"a stack needs 1..{MAX_CODE_FRAMES} code frames, got {n_code_frames}")
-    if not 1 <= source_length <= MAX_SLOTS:
-        raise ValueError(f"source code length must be in 1..{MAX_SLOTS}, got {source_length}")
-    bases = list(range(n_code_frames)) + [WHITE, BLACK]
-    return np.array(
-        [projector_frame_id(b, slot=s, edc_round=edc_round) for b in bases for s in range(source_length)],
-        dtype=np.int64,
-    )
-
-
-def slot_schedule(source_length: int = 1, *, edc_round: int = 0) -> np.ndarray:
-    """Projector frame ids of a "slots" stack: projector frame 0 in slots 0..L-1, int64 (L,)."""
-    if not 1 <= source_length <= MAX_SLOTS:
-        raise ValueError(f"source code length must be in 1..{MAX_SLOTS}, got {source_length}")
-    return np.array([projector_frame_id(0, slot=s, edc_round=edc_round) for s in range(source_length)],
-                    dtype=np.int64)
-
-
-LAYOUTS = ("stack", "slots")
-
-
-def layout_schedule(layout: str, n_code_frames: int, source_length: int = 1) -> np.ndarray:
-    """The schedule of a stack layout (see module docstring)."""
-    if layout == "stack":
-        return stack_schedule(n_code_frames, source_length)
-    if layout == "slots":
-        return slot_schedule(source_length)
-    raise ValueError(f"stack layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
+# The projector frame-id convention and the stack schedules are device facts (`edge.device`); they
+# are re-exported here because every backend speaks them.
+from edge.device import (BLACK, LAYOUTS, MAX_CODE_FRAMES, MAX_EDC_ROUND, MAX_SLOTS, WHITE,  # noqa: F401
+                         ProjectorFrame, layout_schedule, parse_projector_frame, projector_frame_id, slot_schedule,
+                         stack_schedule)
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -5,7 +5,7 @@ One stack is one scan of one curtain: every camera column x is one scan step, in
 lights projector column ``x - d`` (d = the curtain's disparity) during the L slots of the device's
 source code.  The camera frame of slot j holds, in column x, the line reading of step x during
 slot j, so a scan is L frames (H, W) in the "slots" layout.  Successive scans sweep
-`CURTAINS` curtains across the profile's disparity band (`curtain_disparity`), near to far.
+`CURTAINS` curtains across the profile's disparity band (`edge.device.curtain_disparity`), near to far.
 ``interference=True`` adds a second, unsynchronised curtain device with code `INTERFERER_CODE`
 whose laser forms a false curtain that the matched filter rejects.
 
@@ -17,26 +17,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from edge.device import CURTAINS, curtain_disparities, curtain_disparity, full_scale  # noqa: F401  (sweep plan re-exported)
+
 from .base import SensorInfo, slot_schedule
 from .sim import PacedSensor, sim_geometry
-
-#: curtains per sweep of the disparity band
-CURTAINS = 8
 #: the interfering device's code (a shifted 1010 square wave against the profile's 1100)
 INTERFERER_CODE = "0101"
 #: laser line width (Gaussian sigma, projector columns)
 LINE_WIDTH_PX = 0.6
-
-
-def curtain_disparities(profile) -> np.ndarray:
-    """int64 (CURTAINS,) curtain disparities, near (max_disparity) to far (min_disparity)."""
-    d = profile.decoder
-    return np.rint(np.linspace(d.max_disparity, d.min_disparity, CURTAINS)).astype(np.int64)
-
-
-def curtain_disparity(profile, stack: int) -> int:
-    """Disparity (pixels) of the curtain scanned in ``stack``: the sweep repeats every CURTAINS stacks."""
-    return int(curtain_disparities(profile)[int(stack) % CURTAINS])
 
 
 class CurtainSimSensor(PacedSensor):
@@ -66,7 +54,7 @@ class CurtainSimSensor(PacedSensor):
         poses = -(-int(poses) // CURTAINS) * CURTAINS if poses > 0 else 0
         self._init_stream(profile, stacks=stacks, max_speed=max_speed, poses=poses, first_stack=first_stack)
 
-    def _devices(self, stack: int, scene) -> list:
+    def _devices(self, stack: int) -> list:
         from edge.source.curtain import CurtainDevice
 
         g = self.geometry
@@ -99,7 +87,7 @@ class CurtainSimSensor(PacedSensor):
         scene = self.scene(stack)
         cfg = CurtainConfig(width=cam.width, height=cam.height, line_width_px=LINE_WIDTH_PX,
                             ambient=float(self.profile.sim.ambient), sigma_r=cam.sigma_r, sigma_s=cam.sigma_s)
-        slots = curtain_slots(scene, self._devices(stack, scene), cfg, rng=rng, slots=len(self.code))
-        levels = (1 << cam.bits) - 1
+        slots = curtain_slots(scene, self._devices(stack), cfg, rng=rng, slots=len(self.code))
+        levels = int(full_scale(cam.bits))
         q = np.clip(np.rint(slots.astype(np.float64) * levels), 0, levels)
         return q.astype(np.uint8 if cam.bits == 8 else np.uint16)

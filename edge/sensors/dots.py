@@ -7,46 +7,26 @@ when it is 0.  `edge.sim.capture` forms the images (eq. 1: ambient + projector l
 scene's projector-column map, noise, ADC) with the profile's noise figures, one seeded RNG per
 stack.  The projector sits where the profile's geometry puts it (for ``oak-d-pro`` that is the
 right camera: baseline 75 mm, doffs 0), so the de-spread camera image block-matches against the
-projector's pattern (`dot_pattern`) exactly as a left image against a right one.
+projector's pattern (`edge.device.dot_pattern`) exactly as a left image against a right one.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .base import SensorInfo, slot_schedule
+from edge.device import DOT_DENSITY, DeviceModel, check_dot_profile, dot_pattern  # noqa: F401  (re-exported)
+
+from .base import SensorInfo
 from .sim import PacedSensor, sim_camera, sim_geometry
 
-#: fraction of projector pixels that are dots
-DOT_DENSITY = 0.12
 #: per-slot exposure (edge.sim relative units): one slot carries projector + ambient light once
 SLOT_EXPOSURE = 1.0
-
-
-def dot_pattern(profile) -> np.ndarray:
-    """bool (projector.height, projector.width): the dot projector's pattern.
-
-    Simulated devices draw it with `edge.source.dots.random_dots` (density `DOT_DENSITY`, seed
-    ``sim.seed``); the pipelines use the same call as their block-matching reference.
-    """
-    from edge.source.dots import random_dots
-
-    return random_dots(profile.projector.width, profile.projector.height, density=DOT_DENSITY,
-                       seed=int(profile.sim.seed))
 
 
 def source_bits(profile) -> np.ndarray:
     """float32 (L,) on/off chips of the profile's source code ([1] without one)."""
     src = profile.code.source or "1"
     return np.array([c == "1" for c in src], dtype=np.float32)
-
-
-def check_dot_profile(profile) -> None:
-    """The projector must be rectified with the camera at the same size (reference = projector pattern)."""
-    p, c = profile.projector, profile.camera
-    if (p.width, p.height) != (c.width, c.height):
-        raise ValueError(f"profile {profile.name!r}: a dot projector must match the camera size for block "
-                         f"matching, expected projector {c.width}x{c.height}, got {p.width}x{p.height}")
 
 
 class DotsSimSensor(PacedSensor):
@@ -72,8 +52,9 @@ class DotsSimSensor(PacedSensor):
             fps=0.0 if max_speed else cam.rate_hz, n_code_frames=1, source_length=L, layout="slots",
             metadata={"backend": "sim", "projector": "dots", "scene": profile.sim.scene,
                       "seed": str(profile.sim.seed), "dot_density": str(DOT_DENSITY)})
-        self.schedule = slot_schedule(L)
-        self.pattern = dot_pattern(profile)
+        model = DeviceModel.from_profile(profile)
+        self.schedule = model.schedule
+        self.pattern = model.dot_pattern()
         self.projector_frames = (self.pattern[None].astype(np.float32) * bits[:, None, None])  # (L, Hp, Wp)
         self.geometry = sim_geometry(profile)
         self.camera = sim_camera(profile)

@@ -1,6 +1,6 @@
 """Event backend: the event-sensor simulator driving the event-camera SL profile (``event-dots``).
 
-The device's dot projector (pattern `edge.sensors.dots.dot_pattern`) switches on and off by the
+The device's dot projector (pattern `edge.device.dot_pattern`) switches on and off by the
 device's source code, one chip per slot of ``slot_us = 1e6 / projector.rate_hz`` microseconds (the
 profile's camera rate must equal it: one time slice per slot).  An optional interfering device
 (`edge.source.event_sl.Interferer`: another dot projector at another baseline with its own code,
@@ -30,14 +30,10 @@ import time
 
 import numpy as np
 
+from edge.device import DOT_DENSITY, check_dot_profile, dot_pattern, slot_us  # noqa: F401  (slot_us re-exported)
+
 from .base import EventSlice, SensorInfo, slot_schedule
-from .dots import check_dot_profile, dot_pattern
 from .sim import PacedSensor, sim_geometry
-
-
-def slot_us(profile) -> int:
-    """Slot (= time slice) length in whole microseconds: 1e6 / projector.rate_hz."""
-    return int(round(1e6 / profile.projector.rate_hz))
 
 
 def window_offset_us(latency_us: int, slot: int) -> int:
@@ -116,7 +112,6 @@ class EventSimSensor(PacedSensor):
     def _room_interferers(self, stack: int) -> list:
         """The interferers of this stack: ``interference`` and every other member of the room (its
         code, its slot length from the room clock's drift, its offset, power and dot pattern)."""
-        from edge.sensors.dots import DOT_DENSITY
         from edge.source.event_sl import Interferer
 
         out = [self.interferer] if self.interferer is not None else []

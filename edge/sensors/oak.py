@@ -469,10 +469,11 @@ class OakSensor:
                  emitter: Any = None, dot_intensity: float | None = None, flood_intensity: float | None = None,
                  lead_frames: int | None = None, max_frames: int | None = None, rectify: bool = True,
                  pair_window: int = 4, max_skew_ns: int | None = None, emitter_control: str | None = None) -> None:
-        from edge.runtime.pipeline import profile_layout, stack_layout
+        from edge.device import DeviceModel
 
-        n, L = stack_layout(profile)
-        layout = profile_layout(profile)  # dots profiles: one dot frame in the L source-code slots
+        model = DeviceModel.from_profile(profile)
+        n, L = model.n_code_frames, model.source_length
+        layout = model.layout  # dots profiles: one dot frame in the L source-code slots
         cam = profile.camera
         self.stereo = (profile.projector.kind == "dots") if stereo is None else bool(stereo)
         self.profile = profile

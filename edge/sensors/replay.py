@@ -25,21 +25,22 @@ class ReplaySensor:
     """Frames from ``path``; ``max_speed`` = as fast as the consumer reads; ``loop`` = start again at the end."""
 
     def __init__(self, path: str | os.PathLike[str], *, profile=None, max_speed: bool = False) -> None:
+        from edge.device import DeviceModel
         from edge.io.mcap import RecordingReader
-        from edge.runtime.pipeline import pipeline_kind, profile_layout, stack_layout
 
         self.path = os.fspath(path)
         self.reader = RecordingReader(self.path, expected_profile=profile, strict=False)
         if self.reader.profile is None:
             raise ValueError(f"{self.path}: the recording holds no edge profile; cannot replay it")
         self.profile = self.reader.profile
-        n, L = stack_layout(self.profile)
+        model = DeviceModel.from_profile(self.profile)
         cam = self.profile.camera
         self.info = SensorInfo(name="replay", width=cam.width, height=cam.height, bits=cam.bits,
-                               fps=0.0 if max_speed else cam.rate_hz, n_code_frames=n, source_length=L,
+                               fps=0.0 if max_speed else cam.rate_hz, n_code_frames=model.n_code_frames,
+                               source_length=model.source_length,
                                metadata={"backend": "replay", "path": self.path, **self.reader.sensor_metadata},
-                               layout=profile_layout(self.profile))
-        self.events = pipeline_kind(self.profile) == "event-dots"
+                               layout=model.layout)
+        self.events = model.pipeline == "event-dots"
         self.max_speed = max_speed
         self._frames: queue.Queue = queue.Queue(maxsize=256)
         self._masked: dict[int, list[Frame]] = {}
@@ -53,7 +54,7 @@ class ReplaySensor:
     def _records(self):
         """Frames (or, for an event recording, `EventSlice` records) in file order."""
         if self.events:
-            from edge.runtime.event_record import event_stacks
+            from edge.io.event_record import event_stacks
 
             for _, slices, _ in event_stacks(self.reader):
                 yield from slices

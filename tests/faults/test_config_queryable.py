@@ -25,8 +25,8 @@ def _endpoint() -> str:
 
 
 def _service(endpoint: str, tmp_path: Path, **zenoh):
-    from edge.runtime.publish import ZenohSink
-    from edge.runtime.recording import RecordingThread
+    from edge.io.publish import ZenohSink
+    from edge.io.recording import RecordingThread
     from edge.runtime.service import Service
     from edge.sensors.sim import SimSensor
 

@@ -24,8 +24,8 @@ UNIT = ROOT / "deploy" / "systemd" / "edge.service"
 def test_rotation_by_size_every_file_finalised_and_replayable(tmp_path):
     from mcap.reader import make_reader
 
-    from edge.runtime.recording import RecordingThread, series_files
-    from edge.runtime.replay import replay_recording
+    from edge.io.recording import RecordingThread, series_files
+    from edge.io.replay import replay_recording
     from edge.runtime.service import Service
     from edge.sensors.sim import SimSensor
 
@@ -54,7 +54,7 @@ def test_rotation_by_size_every_file_finalised_and_replayable(tmp_path):
 
 
 def test_rotation_keep_bounds_the_number_of_files(tmp_path):
-    from edge.runtime.recording import RecordingThread, series_files
+    from edge.io.recording import RecordingThread, series_files
     from edge.runtime.service import Service
     from edge.sensors.sim import SimSensor
 
@@ -241,7 +241,7 @@ def test_switch_to_a_variant_that_failed_to_compile_or_does_not_fit_is_refused()
 
 def test_real_warm_up_covers_every_switchable_variant():
     """The standard pipeline: every other method and the EDC stage decode a synthetic stack."""
-    from edge.runtime.pipeline import make_pipeline
+    from edge.runtime.pipelines import make_pipeline
     from edge.runtime.warmup import switchable_variants, warm_up_all
 
     profile = load_test_profile()

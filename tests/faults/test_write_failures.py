@@ -57,7 +57,7 @@ def _count(path):
 def test_enospc_mid_recording_is_reported_honestly_and_finalised(tmp_path, full_disk):
     """Before the fix: status frames_written 1122 / frames_lost 0 / errors '' while 100 frames reached
     the disk, then an ENOSPC traceback at shutdown and an unfinalised file."""
-    from edge.runtime.recording import RecordingThread
+    from edge.io.recording import RecordingThread
     from edge.runtime.service import Service
     from edge.sensors.sim import SimSensor
 

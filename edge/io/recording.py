@@ -1,5 +1,5 @@
 """Recording off the capture path: a writer thread around `EdgeRecorder` (an
-`edge.io.mcap_writer.Recorder` that also writes event slices, `edge.runtime.event_record`).
+`edge.io.mcap_writer.Recorder` that also writes event slices, `edge.io.event_record`).
 
 The capture and decode threads only append to an in-memory queue (bounded by bytes, default
 512 MB); one writer thread serialises, compresses and writes.  If the writer ever falls that far
@@ -19,7 +19,7 @@ from typing import Any
 from edge.io.mcap_writer import Recorder
 
 from ..sensors.base import EventSlice, Frame, parse_projector_frame
-from .pipeline import DepthResult
+from edge.runtime.result import DepthResult
 
 
 #: JSON schema of ``/<device>/config_change`` messages.
@@ -30,9 +30,22 @@ CONFIG_CHANGE_SCHEMA = {
 }
 
 
+def stack_info(result: DepthResult) -> dict[str, Any]:
+    """The ``/<device>/stack`` message of one decoded stack (JSON): what a replay needs to know about
+    the stack besides its frames and its depth -- how many camera frames it had (``frames``; a
+    replayed stack with fewer raw frames in the file lost some to the recorder) and how many masked
+    EDC frames followed (``extra_frames``), its first frame's ``sequence``, when its last frame
+    arrived (``received_ns``), the live decode time (``decode_ms``, EDC ``edc_round_ms`` /
+    ``edc_capture_ms``) and the pipeline's per-stack counters (``stats``)."""
+    return {"stack": int(result.stack), "sequence": int(result.sequence), "frames": int(result.stack_frames),
+            "extra_frames": len(result.extra_frames), "edc_rounds": int(result.edc_rounds),
+            "received_ns": int(result.received_ns), "decode_ms": round(result.decode_s * 1e3, 3),
+            "edc_round_ms": list(result.edc_round_ms), "edc_capture_ms": list(result.edc_capture_ms),
+            "stats": {k: int(v) for k, v in result.stats.items()}}
+
 class EdgeRecorder(Recorder):
     """`Recorder` plus `write_events`: event slices on ``/<device>/events`` (schema ``edge.EventSlice``,
-    protobuf; layout in `edge.runtime.event_record`).  The channel is registered on the first slice
+    protobuf; layout in `edge.io.event_record`).  The channel is registered on the first slice
     (through the public `Recorder.register_channel`), so frame recordings are unchanged."""
 
     _events_channel: int | None = None
@@ -263,13 +276,14 @@ class RecordingThread:
             pts = None
             settings = rec.profile.points
             if settings.record:
-                from .points import result_points
+                from edge.runtime.points import result_points
 
                 pts = result_points(r, rec.profile.geometry, settings.stride)
             rec.write_depth(r.depth_mm, r.confidence, timestamp_ns=r.timestamp_ns, stack=r.stack,
                             sequence=r.sequence, edc_rounds=r.edc_rounds,
                             valid_fraction=round(r.valid_fraction, 6), points=pts,
                             geometry=r.geometry)
+            rec.write_stack(stack_info(r), timestamp_ns=r.timestamp_ns)
             self.outputs_written += 1
             self._per_file[rec.path][1] += 1
             if rec is self._old and r.stack >= self._old_last_stack:

@@ -5,7 +5,7 @@ each stack exactly as the service does (`StackAssembler`: incomplete stacks are 
 counted), runs the same `DepthPipeline.process` (EDC rounds get the recorded masked frames back),
 and compares depth (and confidence) with what the service recorded, bit for bit.  Every profile
 kind replays through its own pipeline (`make_pipeline`); an event recording (``event-dots``) is
-read slice by slice from its ``/<device>/events`` topic (`edge.runtime.event_record.event_stacks`).
+read slice by slice from its ``/<device>/events`` topic (`edge.io.event_record.event_stacks`).
 """
 
 from __future__ import annotations
@@ -17,8 +17,9 @@ from typing import Any, Callable
 import numpy as np
 
 from ..sensors.base import Frame, parse_projector_frame
-from .assembly import StackAssembler
-from .pipeline import DepthResult, make_pipeline, pipeline_kind
+from edge.runtime.assembly import StackAssembler
+from edge.runtime.pipelines import make_pipeline, pipeline_kind
+from edge.runtime.result import DepthResult
 
 
 @dataclass

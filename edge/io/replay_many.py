@@ -1,9 +1,9 @@
 """Replay many recordings: one `FileResult` per file, a summary table and a JSON report.
 
-Each file goes through `edge.runtime.replay.replay_recording` (the single-file replay: recorded
+Each file goes through `edge.io.replay.replay_recording` (the single-file replay: recorded
 profile, same pipeline, bit-for-bit comparison); `replay_one` only times it and turns every
 failure into the result's ``error`` so one bad file never stops the others.  `replay_serial`
-runs the files one after the other in this process; `edge.runtime.fleet.replay_on_ray` runs the
+runs the files one after the other in this process; `edge.io.fleet.replay_on_ray` runs the
 same `replay_one` as one Ray task per file.
 """
 

@@ -30,7 +30,7 @@ import numpy as np
 
 from edge.io.ros import OPTICAL_ROTATION, frame_ids
 
-from .pipeline import DepthResult
+from edge.runtime.result import DepthResult
 
 
 def _require_foxglove():
@@ -92,7 +92,7 @@ class FoxgloveSink:
     def on_result(self, result: DepthResult) -> None:
         """Log the depth map's messages on every channel a client subscribed to (nothing is encoded
         for a channel without a subscriber)."""
-        from .points import result_intrinsics, result_points
+        from edge.runtime.points import result_intrinsics, result_points
 
         m, t = self._m, result.timestamp_ns
         geometry = result.geometry if result.geometry is not None else self.profile.geometry

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from .pipeline import DepthResult
+from edge.runtime.result import DepthResult
 
 
 class ZenohSink:
@@ -33,7 +33,7 @@ class ZenohSink:
         self.publisher.publish_depth(result.depth_mm, result.confidence, timestamp_ns=result.timestamp_ns,
                                      sequence=self.sequence, stack=result.stack)
         if self.profile.points.publish:
-            from .points import result_points
+            from edge.runtime.points import result_points
 
             pts = result_points(result, self.profile.geometry, self.profile.points.stride)
             self.publisher.publish_points(pts, timestamp_ns=result.timestamp_ns, sequence=self.sequence,

@@ -33,7 +33,7 @@ from typing import Any, Mapping
 
 from edge.io import ros
 
-from .pipeline import DepthResult
+from edge.runtime.result import DepthResult
 
 IMAGE, INFO, CLOUD = "sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg/PointCloud2"
 TF = "tf2_msgs/msg/TFMessage"
@@ -120,7 +120,7 @@ class RosSink:
         return [self.node_token_key] + [p.token_key for p in self._publishers.values()]
 
     def on_result(self, result: DepthResult) -> None:
-        from .points import result_intrinsics, result_points
+        from edge.runtime.points import result_intrinsics, result_points
 
         t, fid = result.timestamp_ns, self.frame_id
         h, w = result.depth_mm.shape

@@ -1,7 +1,7 @@
 """Replay many recordings on Ray (``pip install 'edge[fleet]'``): one task per recording.
 
 `replay_on_ray(paths, workers=N)` starts a local Ray instance with ``num_cpus=N`` (or joins the
-cluster at ``address``), runs `edge.runtime.replay_many.replay_one` as one task per file (1 CPU
+cluster at ``address``), runs `edge.io.replay_many.replay_one` as one task per file (1 CPU
 each) and returns the `FileResult` list in input order.  A task that dies (worker crash, out of
 memory) becomes that file's ``error``; the other files go on.
 
