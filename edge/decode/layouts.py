@@ -53,50 +53,20 @@ class LayoutCapture:
     stripe: int | None = None
     layout: str = "opencv-graycode"
 
-    def _axis(self, axis: str) -> CodedCapture | None:
-        return self.axes.get(axis)
+    def _get(self, axis: str, name: str, default):
+        a = self.axes.get(axis)
+        if a is None:
+            return np.zeros((0,) + self.white.shape, self.white.dtype) if name == "frames" else default
+        return getattr(a, name)
 
-    def _frames(self, axis: str) -> np.ndarray:
-        a = self._axis(axis)
-        return a.frames if a is not None else np.zeros((0,) + self.white.shape, self.white.dtype)
-
-    @property
-    def frames(self) -> np.ndarray:
-        return self._frames("columns")
-
-    @property
-    def inverse(self) -> np.ndarray | None:
-        a = self._axis("columns")
-        return None if a is None else a.inverse
-
-    @property
-    def code(self) -> Code | None:
-        a = self._axis("columns")
-        return None if a is None else a.code
-
-    @property
-    def columns(self) -> int:
-        a = self._axis("columns")
-        return 0 if a is None else int(a.columns)
-
-    @property
-    def row_frames(self) -> np.ndarray:
-        return self._frames("rows")
-
-    @property
-    def row_inverse(self) -> np.ndarray | None:
-        a = self._axis("rows")
-        return None if a is None else a.inverse
-
-    @property
-    def row_code(self) -> Code | None:
-        a = self._axis("rows")
-        return None if a is None else a.code
-
-    @property
-    def rows(self) -> int:
-        a = self._axis("rows")
-        return 0 if a is None else int(a.columns)
+    frames = property(lambda self: self._get("columns", "frames", None), doc="(n, H, W) column-code frames")
+    inverse = property(lambda self: self._get("columns", "inverse", None), doc="(n, H, W) inverses or None")
+    code = property(lambda self: self._get("columns", "code", None), doc="the column code or None")
+    columns = property(lambda self: int(self._get("columns", "columns", 0)), doc="column cells in use")
+    row_frames = property(lambda self: self._get("rows", "frames", None), doc="(m, H, W) row-code frames")
+    row_inverse = property(lambda self: self._get("rows", "inverse", None), doc="(m, H, W) inverses or None")
+    row_code = property(lambda self: self._get("rows", "code", None), doc="the row code or None")
+    rows = property(lambda self: int(self._get("rows", "columns", 0)), doc="row cells in use")
 
 
 #: Former name of `LayoutCapture`.
