@@ -62,8 +62,8 @@ def pack_words_at(frames: np.ndarray, start: int, n: int, ys: np.ndarray, xs: np
         y, x = ys[p], xs[p]
         t = (hi[p] + lo[p]) * np.float32(0.5)
         w = np.int64(0)
-        for i in range(n):
-            w |= np.int64(np.float32(frames[start + i, y, x]) > t) << i
+        for i in range(n - 1, -1, -1):  # last frame first: frame 0 ends in bit 0
+            w = (w << 1) | (1 if np.float32(frames[start + i, y, x]) > t else 0)
         out[p] = w
     return out
 
@@ -144,9 +144,9 @@ def pack_words_full(frames: np.ndarray, start: int, n: int, hi: np.ndarray, lo: 
         t = np.empty(w, dtype=np.float32)
         for x in range(w):
             t[x] = (np.float32(hi[y, x]) + np.float32(lo[y, x])) * np.float32(0.5)
-        for i in range(n):
+        for i in range(n - 1, -1, -1):  # last frame first: frame 0 ends in bit 0
             for x in range(w):
-                out[y, x] |= np.int64(np.float32(frames[start + i, y, x]) > t[x]) << i
+                out[y, x] = (out[y, x] << 1) | (np.float32(frames[start + i, y, x]) > t[x])
     return out
 
 
@@ -262,10 +262,10 @@ def round1_words(frames: np.ndarray, n: int, white: np.ndarray, black: np.ndarra
                 lo[x] = np.float32(black[y, x])
         for x in range(w):
             word[x] = 0
-        for i in range(n):
+        for i in range(n - 1, -1, -1):  # last frame first: frame 0 ends in bit 0
             for x in range(w):
                 t = (hi[x] + lo[x]) * np.float32(0.5)
-                word[x] |= np.int64(np.float32(frames[i, y, x]) > t) << i
+                word[x] = (word[x] << 1) | (np.float32(frames[i, y, x]) > t)
         for x in range(w):
             hn = hi[x] / fs
             contrast = hn - lo[x] / fs
