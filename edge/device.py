@@ -46,6 +46,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from edge.capture import dtype_for_bits
+from edge.capture import full_scale as capture_full_scale
+
 #: base id of the white (projector fully on) calibration frame
 WHITE = 0xFE
 #: base id of the black (projector fully off) calibration frame
@@ -243,8 +246,9 @@ def profile_schedule(profile) -> np.ndarray:
 
 
 def full_scale(bits: int) -> float:
-    """Largest sample value of a ``bits``-bit camera: 2**bits - 1 (255.0 for 8 bits)."""
-    return float((1 << int(bits)) - 1)
+    """Largest sample value of a ``bits``-bit camera: 2**bits - 1 (255.0 for 8 bits), by the one
+    full-scale rule `edge.capture.full_scale` of the camera's sample dtype."""
+    return float(capture_full_scale(dtype_for_bits(bits), bits))
 
 
 @dataclass(frozen=True, eq=False)

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from edge.codes.code import pack_rows
+from edge.codes.words import pack_words
 from edge.runtime.pipeline import DepthPipeline
 
 DATA = Path(__file__).parent / "data"
@@ -28,8 +28,8 @@ def hard_decode_numpy(frames, white, black, code):
     thr = (white.astype(np.float32) + black.astype(np.float32)) / 2
     bits = (f > thr[None]).astype(np.uint8)  # (n, H, W)
     n, h, w = bits.shape
-    words = pack_rows(bits.reshape(n, -1).T)  # (H*W,)
-    book = pack_rows(code.codebook)
+    words = pack_words(bits.reshape(n, -1).T)  # (H*W,)
+    book = pack_words(code.codebook)
     dist = np.bitwise_count(words[:, None] ^ book[None, :]).astype(np.int32)
     best = np.argmin(dist, axis=1)
     d1 = dist[np.arange(dist.shape[0]), best]

@@ -11,8 +11,9 @@ from edge.codes.families import bch, bch_generator_poly, bch_table, hamming, ree
 from edge.codes.gfq import gf_inv, gf_mul
 from edge.codes.linear import column_messages, golay, shorten
 from edge.codes.nary import qary_gray_digits, reed_solomon, reed_solomon_generator_poly
+from edge.codes.words import pack_words as _pack  # the one bit-packing function
 from edge.codes.search import (
-    _pack, _weight_profile, search_code, search_cyclic, search_generator_columns, search_parity_columns,
+    _weight_profile, search_code, search_cyclic, search_generator_columns, search_parity_columns,
 )
 from edge.codes.table import KNOWN_K10, table_for_k
 

@@ -73,15 +73,6 @@ def encode_messages(messages: np.ndarray, generator: np.ndarray, q: int = 2) -> 
     return gf_matmul(digits, g, q).astype(np.uint8)
 
 
-def pack_rows(codebook: np.ndarray) -> np.ndarray:
-    """Pack binary rows (M, n<=64) into uint64 integers (bit n-1-i = column i)."""
-    n = codebook.shape[1]
-    if n > 64:
-        raise ValueError(f"pack_rows supports n <= 64 symbols, got n={n}")
-    weights = np.left_shift(np.uint64(1), np.arange(n - 1, -1, -1, dtype=np.uint64))
-    return (codebook.astype(np.uint64) * weights).sum(axis=1, dtype=np.uint64)
-
-
 def _popcount64(x: np.ndarray) -> np.ndarray:
     return np.bitwise_count(x).astype(np.int64)
 
@@ -103,7 +94,9 @@ def pairwise_min_distance(codebook: np.ndarray) -> int:
         return n
     best = n
     if n <= 64 and cb.max(initial=0) <= 1:
-        packed = pack_rows(cb)
+        from .words import pack_words
+
+        packed = pack_words(cb)
         for i in range(m - 1):
             d = _popcount64(packed[i + 1:] ^ packed[i]).min()
             if d < best:
@@ -225,13 +218,6 @@ class Code:
     def size(self) -> int:
         """Number of codewords = number of distinguishable projector columns (q**k)."""
         return int(self.codebook.shape[0])
-
-    @property
-    def prime_field(self) -> bool:
-        """True when symbol arithmetic is integers mod q (q prime); False for GF(2**m), q = 8, 16..."""
-        from .gfq import field_kind
-
-        return field_kind(self.q) == "prime"
 
     def encode(self, messages: np.ndarray) -> np.ndarray:
         """Codewords of message integers with the generator, in the arithmetic of GF(q).

@@ -2,43 +2,55 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
+
+
+def as_ints(vectors: np.ndarray) -> list[int]:
+    """Rows of a 0/1 matrix as Python integers (any length; first entry = most significant)."""
+    m = np.asarray(vectors, dtype=np.uint8) & 1
+    return [int.from_bytes(np.packbits(row).tobytes(), "big") >> (-m.shape[1] % 8) for row in m]
+
+
+def independent(vectors: Iterable[int], limit: int | None = None) -> list[int]:
+    """Indices of the GF(2) vectors (Python ints) that are independent of the ones before them.
+
+    The one incremental elimination of the package: each vector is reduced against the basis kept
+    so far (by leading bit); a vector that does not reduce to 0 joins it.  Stops after ``limit``
+    independent vectors.  ``len(independent(v))`` is the rank of the span.
+    """
+    chosen: list[int] = []
+    basis: dict[int, int] = {}  # leading bit -> reduced vector
+    for i, v in enumerate(vectors):
+        v = int(v)
+        while v:
+            lead = v.bit_length() - 1
+            if lead in basis:
+                v ^= basis[lead]
+            else:
+                basis[lead] = v
+                chosen.append(i)
+                break
+        if limit is not None and len(chosen) >= limit:
+            break
+    return chosen
 
 
 def rank(matrix: np.ndarray) -> int:
     """Rank of a 0/1 matrix over GF(2)."""
-    m = (np.asarray(matrix, dtype=np.uint8) & 1).copy()
-    rows, cols = m.shape
-    r = 0
-    for c in range(cols):
-        pivot = np.nonzero(m[r:, c])[0]
-        if pivot.size == 0:
-            continue
-        p = r + pivot[0]
-        m[[r, p]] = m[[p, r]]
-        hit = np.nonzero(m[:, c])[0]
-        hit = hit[hit != r]
-        m[hit] ^= m[r]
-        r += 1
-        if r == rows:
-            break
-    return r
+    m = np.asarray(matrix)
+    if m.size == 0:
+        return 0
+    return len(independent(as_ints(m)))
 
 
 def systematic_form(generator: np.ndarray) -> np.ndarray:
-    """Row-reduce a full-rank (k, n) generator to [I_k | P] (raises if the first k columns are singular)."""
-    g = (np.asarray(generator, dtype=np.uint8) & 1).copy()
-    k = g.shape[0]
-    for c in range(k):
-        pivot = np.nonzero(g[c:, c])[0]
-        if pivot.size == 0:
-            raise ValueError("generator's first k columns are not an information set; permute columns first")
-        p = c + pivot[0]
-        g[[c, p]] = g[[p, c]]
-        hit = np.nonzero(g[:, c])[0]
-        hit = hit[hit != c]
-        g[hit] ^= g[c]
-    return g
+    """Row-reduce a full-rank (k, n) generator to [I_k | P] (uint8; raises if the first k columns are
+    singular): `edge.codes.gfq.systematic_form_q` over GF(2)."""
+    from .gfq import systematic_form_q
+
+    return systematic_form_q(np.asarray(generator, dtype=np.uint8) & 1, 2).astype(np.uint8)
 
 
 def encode(messages: np.ndarray, generator: np.ndarray) -> np.ndarray:
@@ -54,14 +66,6 @@ def all_codewords(generator: np.ndarray) -> np.ndarray:
     """All 2**k codewords in message order: (2**k, n) uint8."""
     k = generator.shape[0]
     return encode(np.arange(2**k, dtype=np.int64), generator)
-
-
-def parity_check(generator_systematic: np.ndarray) -> np.ndarray:
-    """Parity-check matrix H = [P^T | I_{n-k}] of a systematic generator [I_k | P]."""
-    g = np.asarray(generator_systematic, dtype=np.uint8)
-    k, n = g.shape
-    p = g[:, k:]
-    return np.concatenate([p.T, np.eye(n - k, dtype=np.uint8)], axis=1)
 
 
 def poly_to_bits(poly: int, degree: int) -> np.ndarray:

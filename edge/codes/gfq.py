@@ -108,20 +108,26 @@ def gf_matmul(a: np.ndarray, b: np.ndarray, q: int) -> np.ndarray:
 
 
 def systematic_form_q(generator: np.ndarray, q: int) -> np.ndarray:
-    """Row-reduce a full-rank (k, n) generator over GF(q) to [I_k | P] (first k columns must be an
-    information set)."""
+    """Row-reduce a full-rank (k, n) generator over GF(q) to [I_k | P] (int64).
+
+    The one Gauss-Jordan elimination of the package (`edge.codes.gf2.systematic_form` is its
+    q = 2 case).  The first k columns must be an information set (ValueError otherwise; permute
+    columns first, `edge.codes.linear.information_set_first`).
+    """
     g = np.asarray(generator, dtype=np.int64).copy() % q
     k = g.shape[0]
     for c in range(k):
         pivot = np.nonzero(g[c:, c])[0]
         if pivot.size == 0:
-            raise ValueError("generator's first k columns are not an information set")
+            raise ValueError("generator's first k columns are not an information set; permute columns first")
         p = c + pivot[0]
         g[[c, p]] = g[[p, c]]
-        g[c] = gf_mul(g[c], gf_inv(int(g[c, c]), q), q)
-        for r in range(k):
-            if r != c and g[r, c]:
-                g[r] = gf_add(g[r], gf_neg(gf_mul(g[c], int(g[r, c]), q), q), q)
+        if g[c, c] != 1:
+            g[c] = gf_mul(g[c], gf_inv(int(g[c, c]), q), q)
+        hit = np.nonzero(g[:, c])[0]
+        hit = hit[hit != c]
+        if hit.size:
+            g[hit] = gf_add(g[hit], gf_neg(gf_mul(g[hit, c:c + 1], g[c][None, :], q), q), q)
     return g
 
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .code import Code, digits_to_int, gray
-from .gf2 import all_codewords, cyclic_generator, encode, rank, systematic_form
+from .code import Code, gray
+from .gf2 import all_codewords, as_ints, cyclic_generator, encode, independent, rank, systematic_form
 
 GOLAY_23_POLY = 0b110001110101  # x^11 + x^10 + x^6 + x^5 + x^4 + x^2 + 1
 
@@ -21,22 +21,8 @@ def min_weight_basis(generator: np.ndarray) -> np.ndarray:
     words = all_codewords(generator)
     weights = words.sum(axis=1)
     order = np.lexsort((np.arange(len(weights)), weights))
-    basis: list[int] = []
-    reduced: dict[int, int] = {}  # leading bit -> reduced vector (integer elimination)
-    for m in order:
-        if weights[m] == 0:
-            continue
-        v = int(m)
-        while v:
-            lead = v.bit_length() - 1
-            if lead in reduced:
-                v ^= reduced[lead]
-            else:
-                reduced[lead] = v
-                basis.append(int(m))
-                break
-        if len(basis) == k:
-            break
+    nonzero = order[weights[order] > 0]
+    basis = [int(nonzero[i]) for i in independent((int(m) for m in nonzero), limit=k)]
     return np.array(basis, dtype=np.int64)
 
 
@@ -73,12 +59,7 @@ def information_set_first(generator: np.ndarray) -> np.ndarray:
     """
     g = np.asarray(generator, dtype=np.uint8) & 1
     k, n = g.shape
-    chosen: list[int] = []
-    for c in range(n):
-        if rank(g[:, chosen + [c]]) == len(chosen) + 1:
-            chosen.append(c)
-            if len(chosen) == k:
-                break
+    chosen = independent(as_ints(g.T), limit=k)
     if len(chosen) < k:
         raise ValueError(f"generator of shape {g.shape} is not full rank")
     rest = [c for c in range(n) if c not in set(chosen)]
@@ -153,7 +134,3 @@ def golay(extended: bool = True, order: str = "gray") -> Code:
         return base
     return extend(base, name="golay-24-12")
 
-
-def messages_from_codebook_bits(code: Code) -> np.ndarray:
-    """The systematic part of each codeword as an integer (equals ``code.messages``)."""
-    return digits_to_int(code.codebook[:, : code.k])

@@ -34,10 +34,11 @@ import functools
 import numpy as np
 from numba import njit
 
-from .code import Code, int_to_digits
+from .code import Code, digits_to_int, int_to_digits
 from .gfq import poly2_mul
 from .linear import from_generator
 from .table import griesmer_bound
+from .words import pack_words
 
 MAX_K_SEARCH = 16
 MAX_N_CYCLIC = 63
@@ -278,8 +279,7 @@ def search_parity_columns(n: int, k: int, *, seed: int = 0, iterations: int = 20
     from .linear import information_set_first
 
     g = systematic_form(information_set_first(_columns_to_generator(cols, k)))
-    powers = 1 << np.arange(k - 1, -1, -1, dtype=np.int64)
-    return (g[:, k:].astype(np.int64) * powers[:, None]).sum(axis=0), d
+    return digits_to_int(g[:, k:].T), d
 
 
 # ---------------------------------------------------------------------------------------------
@@ -317,12 +317,6 @@ def _divisors_of_degree(factors: tuple[int, ...], degree: int, limit: int) -> li
     return out
 
 
-def _pack(generator: np.ndarray) -> np.ndarray:
-    n = generator.shape[1]
-    powers = np.left_shift(np.uint64(1), np.arange(n - 1, -1, -1, dtype=np.uint64))
-    return (generator.astype(np.uint64) * powers).sum(axis=1, dtype=np.uint64)
-
-
 def search_cyclic(n: int, k: int, *, max_candidates: int = 4096) -> tuple[np.ndarray, int, int, str] | None:
     """Best binary [n, k] code among shortened and extended cyclic codes (exhaustive, no seed).
 
@@ -344,7 +338,7 @@ def search_cyclic(n: int, k: int, *, max_candidates: int = 4096) -> tuple[np.nda
             g = systematic_form(cyclic_generator(poly, length))[s:, s:]
             if extend:
                 g = np.concatenate([g, g.sum(axis=1, keepdims=True) & 1], axis=1).astype(np.uint8)
-            d, count = _weight_profile(_pack(g))
+            d, count = _weight_profile(pack_words(g))
             if best is None or (d, -count) > (best[1], -best[2]):
                 what = "extended by parity" if extend else (f"shortened by {s}" if s else "")
                 desc = f"cyclic ({length}, {k + s}) code g(x)=0x{poly:x}" + (f", {what}" if what else "")

@@ -23,7 +23,7 @@ from math import comb
 
 import numpy as np
 
-from .code import Code, int_to_digits
+from .code import Code, digits_to_int, int_to_digits
 from .families import bch_table, bch_generator, hamming_generator, reed_muller_generator
 from .gf2 import cyclic_generator, systematic_form
 from .linear import GOLAY_23_POLY, from_generator, information_set_first
@@ -156,8 +156,7 @@ def _rank_key(cell: Cell) -> tuple:
 def _shortened_columns(base: _Base, k: int) -> tuple[int, ...]:
     """Columns of the family code shortened to k message bits (identity part included)."""
     p = base.parity_rows[base.k - k:]  # rows of the kept message bits, (k, N-K)
-    weights = 1 << np.arange(k - 1, -1, -1, dtype=np.int64)
-    parity_cols = (p.astype(np.int64) * weights[:, None]).sum(axis=0)
+    parity_cols = digits_to_int(p.T)  # message-space integers, row i = bit k-1-i
     unit = [1 << (k - 1 - i) for i in range(k)]
     return tuple(unit + [int(c) for c in parity_cols if c])
 

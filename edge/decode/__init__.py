@@ -1,9 +1,9 @@
 """Decoders: soft-decision ML, hard, list decoding with the order prior, confidence median
 filter; EDC error maps; loaders for real capture layouts."""
 
-from .check import check, contrast_error_map, error_map
-from .decoder import DEFAULTS, METHODS, Decoded, decode
-from .layouts import Capture, decode_axes, load_manifest, load_opencv_graycode
+from .check import check, check_capture, contrast_error_map, error_map
+from .decoder import DEFAULTS, METHODS, Decoded, decode, decode_capture
+from .layouts import Capture, LayoutCapture, decode_axes, load_manifest, load_opencv_graycode
 from .levels import decode_refined, refine_levels
 from .settings import DEFAULT_SETTINGS, DecodeSettings
 from .spatial import confidence_median, order_prior, spatial_outliers
@@ -11,4 +11,5 @@ from .spatial import confidence_median, order_prior, spatial_outliers
 __all__ = [
     "Decoded", "decode", "DecodeSettings", "DEFAULT_SETTINGS", "decode_refined", "refine_levels", "DEFAULTS", "METHODS", "check",
     "contrast_error_map", "error_map", "order_prior", "confidence_median", "spatial_outliers", "Capture", "load_opencv_graycode", "load_manifest", "decode_axes",
+    "decode_capture", "check_capture", "LayoutCapture",
 ]

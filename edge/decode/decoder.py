@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from ..capture import CodedCapture
 from ..codes import Code
 from . import kernels
 from .inputs import Stack, validate
@@ -171,3 +172,26 @@ def decode(
     column = np.where(valid, column, -1).astype(np.int32)
     return Decoded(column=column, confidence=confidence, valid=column >= 0, candidates=cand,
                    distances=dist, stats=st)
+
+
+def decode_capture(capture: CodedCapture, code: Code | None = None, *, settings=None, **overrides) -> Decoded:
+    """`decode` of one `edge.capture.CodedCapture`.
+
+    Unpacks frames, white, black, inverse, bit_depth and, where the capture states them,
+    ``columns`` (codebook rows in use) and ``stripe``; code defaults to ``capture.code``.
+    settings (a `DecodeSettings`, where `decode` takes one) and keyword ``overrides`` (any
+    `decode` keyword, e.g. ``method``, ``sigma_r``) are passed on; an override wins over what the
+    capture states.
+    """
+    code = capture.code if code is None else code
+    if code is None:
+        raise ValueError("decode_capture: expected a code (the capture does not name one), got None")
+    kwargs: dict = {"inverse": capture.inverse, "bit_depth": capture.bit_depth}
+    if capture.columns is not None:
+        kwargs["columns"] = int(capture.columns)
+    if capture.stripe is not None:
+        kwargs["stripe"] = int(capture.stripe)
+    if settings is not None:
+        kwargs["settings"] = settings
+    kwargs.update(overrides)
+    return decode(capture.frames, capture.white, capture.black, code, **kwargs)

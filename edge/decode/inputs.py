@@ -2,39 +2,24 @@
 
 Every check raises one `ValueError` naming what was expected and what was given. Arrays are
 never copied here (the kernels read uint8 / uint16 / float32 / float64 directly); the only
-product is the intensity scale that maps raw values to the normalised range [0, 1].
+product is a `edge.capture.CodedCapture` whose ``scale`` (`edge.capture.full_scale`) maps raw
+values to the normalised range [0, 1].
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from ..capture import CodedCapture, full_scale
 from ..codes import Code
 
 _INT_DTYPES = (np.uint8, np.uint16)
 _FLOAT_DTYPES = (np.float32, np.float64)
 
 
-@dataclass(frozen=True)
-class Stack:
-    """Validated decoder input (no copies of frame data).
-
-    frames: (n, H, W) raw frames; inverse: (n, H, W) or None; white, black: (H, W) of the same
-    dtype as frames; scale: factor taking raw values to normalised intensity (1/255 for uint8,
-    1/(2**bit_depth - 1) for uint16, 1 for floats, which are taken as already normalised).
-    """
-
-    frames: np.ndarray
-    inverse: np.ndarray | None
-    white: np.ndarray
-    black: np.ndarray
-    scale: float
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        return int(self.frames.shape[1]), int(self.frames.shape[2])
+#: The decoder's name for a validated capture: `edge.capture.CodedCapture` (attributes
+#: ``frames, inverse, white, black, scale``).
+Stack = CodedCapture
 
 
 def _check_dtype(name: str, a: np.ndarray) -> None:
@@ -56,8 +41,8 @@ def validate(
     code: Code,
     inverse: np.ndarray | None = None,
     bit_depth: int | None = None,
-) -> Stack:
-    """Check shapes, dtypes and values of a capture for `code`; return a `Stack`.
+) -> CodedCapture:
+    """Check shapes, dtypes and values of a capture for `code`; return a `CodedCapture`.
 
     frames (n, H, W) with n == code.n; white, black (H, W); inverse (n, H, W) or None. All arrays
     must share one dtype (uint8, uint16, float32 or float64). bit_depth: significant bits of
@@ -93,20 +78,13 @@ def validate(
         raise ValueError(f"frames: expected a non-empty image, got shape {frames.shape}")
     if not np.greater(white, black).any():  # one dtype (checked above): compared as is
         raise ValueError("white/black: expected white brighter than black somewhere, got white <= black everywhere")
-    dtype = frames.dtype
-    if dtype == np.uint8:
-        scale = 1.0 / 255.0
-    elif dtype == np.uint16:
-        bits = 16 if bit_depth is None else int(bit_depth)
-        if not 1 <= bits <= 16:
-            raise ValueError(f"bit_depth: expected 1..16 for uint16 frames, got {bit_depth}")
-        scale = 1.0 / (2**bits - 1)
-    else:
-        scale = 1.0
+    # bit_depth counts for uint16 only (uint8 is 8 bits, floats are normalised): one full-scale rule
+    depth = None if bit_depth is None or frames.dtype != np.uint16 else int(bit_depth)
+    full_scale(frames.dtype, depth)  # raises on a bit_depth outside 1..16
     # Kernels index frames[i, y, x]; contiguous layout keeps that cheap.
     frames = np.ascontiguousarray(frames)
     white = np.ascontiguousarray(white)
     black = np.ascontiguousarray(black)
     if inverse is not None:
         inverse = np.ascontiguousarray(inverse)
-    return Stack(frames=frames, inverse=inverse, white=white, black=black, scale=scale)
+    return CodedCapture(frames=frames, white=white, black=black, inverse=inverse, code=code, bit_depth=depth)

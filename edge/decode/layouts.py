@@ -25,38 +25,58 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ..capture import CodedCapture
 from ..codes import Code, get_code
 from ..patterns.manifest import MANIFEST, LayoutSpec, read_manifest
-from .decoder import decode
+from .decoder import decode_capture
 
 LAYOUTS = ("auto", "opencv-graycode", "manifest")
 _IMAGE_SUFFIXES = {".png", ".tif", ".tiff", ".bmp", ".pgm", ".jpg", ".jpeg"}
 
 
-@dataclass(frozen=True)
-class Capture:
-    """A real capture ready for `decode`.
+@dataclass(frozen=True, eq=False)
+class LayoutCapture:
+    """A real capture ready for `decode`: one `edge.capture.CodedCapture` per coded axis.
 
-    frames, inverse: (n, H, W) column-bit patterns and their inverses (n = 0 when the layout codes
-    no columns; inverse None when it has no inverse frames); white, black: (H, W);
-    row_frames, row_inverse: (m, H, W) row-bit patterns (m = 0 when the layout codes no rows;
-    row_inverse None without inverse frames); code: the column code (None without columns);
-    columns: column cells in use; row_code, rows: the same for rows; stripe: projector pixels per
-    code cell when the layout states it (a manifest), else None; layout: the layout loaded.
+    axes: {"columns": CodedCapture, "rows": CodedCapture}, holding only the axes the layout codes
+    (each with its code, ``columns`` = cells in use, inverse frames or None, the shared white and
+    black; stripe None, so that it decodes in code cells; no exposure: image files do not carry it);
+    white, black: (H, W); stripe: projector pixels per code cell when the layout states it (a
+    manifest), else None; layout: the layout loaded.  ``frames``, ``inverse``, ``code``,
+    ``columns`` and ``row_frames``, ``row_inverse``, ``row_code``, ``rows`` read the axes (empty
+    (0, H, W) frames, None and 0 for an axis the layout does not code).
     """
 
-    frames: np.ndarray
-    inverse: np.ndarray | None
+    axes: dict[str, CodedCapture]
     white: np.ndarray
     black: np.ndarray
-    row_frames: np.ndarray
-    row_inverse: np.ndarray | None
-    code: Code | None
-    columns: int
-    row_code: Code | None = None
-    rows: int = 0
     stripe: int | None = None
     layout: str = "opencv-graycode"
+
+    def _get(self, axis: str, name: str, default):
+        a = self.axes.get(axis)
+        if a is None:
+            return np.zeros((0,) + self.white.shape, self.white.dtype) if name == "frames" else default
+        return getattr(a, name)
+
+    frames = property(lambda self: self._get("columns", "frames", None), doc="(n, H, W) column-code frames")
+    inverse = property(lambda self: self._get("columns", "inverse", None), doc="(n, H, W) inverses or None")
+    code = property(lambda self: self._get("columns", "code", None), doc="the column code or None")
+    columns = property(lambda self: int(self._get("columns", "columns", 0)), doc="column cells in use")
+    row_frames = property(lambda self: self._get("rows", "frames", None), doc="(m, H, W) row-code frames")
+    row_inverse = property(lambda self: self._get("rows", "inverse", None), doc="(m, H, W) inverses or None")
+    row_code = property(lambda self: self._get("rows", "code", None), doc="the row code or None")
+    rows = property(lambda self: int(self._get("rows", "columns", 0)), doc="row cells in use")
+
+
+#: Former name of `LayoutCapture`.
+Capture = LayoutCapture
+
+
+def _axis(frames: np.ndarray, inverse: np.ndarray | None, white: np.ndarray, black: np.ndarray, code: Code,
+          cells: int) -> CodedCapture:
+    """One coded axis; decoded in code cells (stripe None: the layout's stripe is on `LayoutCapture`)."""
+    return CodedCapture(frames=frames, white=white, black=black, inverse=inverse, code=code, columns=int(cells))
 
 
 def _read_gray(path: Path) -> np.ndarray:
@@ -80,7 +100,7 @@ def _stack(images: list[np.ndarray], files: list[Path]) -> np.ndarray:
     return np.stack(images)
 
 
-def load_opencv_graycode(directory: str | Path, projector: tuple[int, int] = (1024, 768)) -> Capture:
+def load_opencv_graycode(directory: str | Path, projector: tuple[int, int] = (1024, 768)) -> LayoutCapture:
     """Load an OpenCV GrayCodePattern capture from `directory` (images sorted by file name).
 
     projector: the ``(W, H)`` Gray-code grid in code cells (see the module docstring)."""
@@ -100,12 +120,14 @@ def load_opencv_graycode(directory: str | Path, projector: tuple[int, int] = (10
     imgs = _stack([_read_gray(p) for p in files], files)
     cols = imgs[: 2 * col_bits]
     rows = imgs[2 * col_bits: 2 * (col_bits + row_bits)]
-    return Capture(
-        frames=np.ascontiguousarray(cols[0::2]), inverse=np.ascontiguousarray(cols[1::2]),
-        white=imgs[-2], black=imgs[-1], row_frames=np.ascontiguousarray(rows[0::2]),
-        row_inverse=np.ascontiguousarray(rows[1::2]), code=get_code(f"gray-{col_bits}"), columns=pw,
-        row_code=get_code(f"gray-{row_bits}"), rows=ph, stripe=None, layout="opencv-graycode",
-    )
+    white, black = imgs[-2], imgs[-1]
+    axes = {
+        "columns": _axis(np.ascontiguousarray(cols[0::2]), np.ascontiguousarray(cols[1::2]), white, black,
+                         get_code(f"gray-{col_bits}"), pw),
+        "rows": _axis(np.ascontiguousarray(rows[0::2]), np.ascontiguousarray(rows[1::2]), white, black,
+                      get_code(f"gray-{row_bits}"), ph),
+    }
+    return LayoutCapture(axes=axes, white=white, black=black, stripe=None, layout="opencv-graycode")
 
 
 def _find(directory: Path, name: str) -> Path:
@@ -123,7 +145,7 @@ def _find(directory: Path, name: str) -> Path:
                      f"{', '.join(p.name for p in matches)}")
 
 
-def load_manifest(directory: str | Path, manifest: str | Path | None = None) -> Capture:
+def load_manifest(directory: str | Path, manifest: str | Path | None = None) -> LayoutCapture:
     """Load the captures of a pattern set described by a manifest (`edge.patterns.manifest`).
 
     directory: the captured images, named after the manifest's frames; manifest: the
@@ -138,12 +160,10 @@ def load_manifest(directory: str | Path, manifest: str | Path | None = None) -> 
     paths = [_find(d, n) for n in names]
     imgs = dict(zip(names, _stack([_read_gray(p) for p in paths], paths)))
     white, black = imgs[spec.white], imgs[spec.black]
-    empty = np.zeros((0,) + white.shape, white.dtype)
-    parts: dict[str, tuple] = {}
+    axes: dict[str, CodedCapture] = {}
     for axis in ("columns", "rows"):
         ax = spec.axes.get(axis)
         if ax is None:
-            parts[axis] = (empty, None, None, 0)
             continue
         code = get_code(ax.code)
         if len(ax.patterns) != code.n:
@@ -153,14 +173,11 @@ def load_manifest(directory: str | Path, manifest: str | Path | None = None) -> 
             raise ValueError(f"{d}: manifest axis {axis} uses {ax.cells} cells, code {code.name} has {code.size}")
         frames = np.stack([imgs[n] for n in ax.patterns])
         inverse = None if ax.inverse is None else np.stack([imgs[n] for n in ax.inverse])
-        parts[axis] = (frames, inverse, code, ax.cells)
-    cf, ci, cc, cn = parts["columns"]
-    rf, ri, rc, rn = parts["rows"]
-    return Capture(frames=cf, inverse=ci, white=white, black=black, row_frames=rf, row_inverse=ri, code=cc,
-                   columns=cn, row_code=rc, rows=rn, stripe=spec.stripe, layout="manifest")
+        axes[axis] = _axis(frames, inverse, white, black, code, ax.cells)
+    return LayoutCapture(axes=axes, white=white, black=black, stripe=spec.stripe, layout="manifest")
 
 
-def load(directory: str | Path, layout: str, projector: tuple[int, int], manifest: str | Path | None = None) -> Capture:
+def load(directory: str | Path, layout: str, projector: tuple[int, int], manifest: str | Path | None = None) -> LayoutCapture:
     """Load a capture in one of `LAYOUTS` (projector: the OpenCV Gray-code grid, see above)."""
     if layout == "auto":
         layout = "manifest" if manifest is not None or (Path(directory) / MANIFEST).is_file() else "opencv-graycode"
@@ -171,15 +188,13 @@ def load(directory: str | Path, layout: str, projector: tuple[int, int], manifes
     raise ValueError(f"layout: expected one of {', '.join(LAYOUTS)}, got {layout!r}")
 
 
-def decode_axes(cap: Capture, axes: tuple[str, ...] = ("columns", "rows"), **decode_kwargs) -> dict:
-    """Decode the coded axes of ``cap`` among ``axes`` with `edge.decode.decode` (keyword
-    arguments passed on, e.g. ``method``). Returns {axis: Decoded} for the axes the capture has;
-    Decoded.column holds code cells (-1 invalid)."""
+def decode_axes(cap: LayoutCapture, axes: tuple[str, ...] = ("columns", "rows"), **decode_kwargs) -> dict:
+    """Decode the coded axes of ``cap`` among ``axes`` with `edge.decode.decoder.decode_capture`
+    (keyword arguments passed on, e.g. ``method``). Returns {axis: Decoded} for the axes the
+    capture has; Decoded.column holds code cells (-1 invalid)."""
     out = {}
-    if "columns" in axes and cap.code is not None and cap.frames.shape[0]:
-        out["columns"] = decode(cap.frames, cap.white, cap.black, cap.code, inverse=cap.inverse,
-                                columns=cap.columns, **decode_kwargs)
-    if "rows" in axes and cap.row_code is not None and cap.row_frames.shape[0]:
-        out["rows"] = decode(cap.row_frames, cap.white, cap.black, cap.row_code, inverse=cap.row_inverse,
-                             columns=cap.rows, **decode_kwargs)
+    for axis in ("columns", "rows"):
+        a = cap.axes.get(axis)
+        if axis in axes and a is not None and a.code is not None and a.n:
+            out[axis] = decode_capture(a, a.code, **decode_kwargs)
     return out

@@ -2,37 +2,26 @@
 
 Not a scene simulator (that is `edge.sim`): every pixel sees one known codebook row, with
 per-pixel albedo and ambient light, heteroscedastic Gaussian noise sigma_r**2 + sigma_s**2 * I
-on every frame (white and black included), clipping to [0, 1] and quantisation.
+on every frame (white and black included), clipping to [0, 1] and quantisation to the full scale
+of the dtype and bit depth (`edge.capture.full_scale`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from ..capture import CodedCapture, NoiseModel, full_scale
 from ..codes import Code
 
-
-@dataclass(frozen=True)
-class SyntheticCapture:
-    """frames (n, H, W), white, black (H, W) in `dtype`; columns (H, W) int64 true rows;
-    inverse (n, H, W) or None."""
-
-    frames: np.ndarray
-    white: np.ndarray
-    black: np.ndarray
-    columns: np.ndarray
-    inverse: np.ndarray | None
+#: make_capture's result: `edge.capture.CodedCapture` with ``truth`` = the true rows.
+SyntheticCapture = CodedCapture
 
 
-def _quantise(x: np.ndarray, dtype: np.dtype) -> np.ndarray:
+def _quantise(x: np.ndarray, dtype: np.dtype, bit_depth: int | None = None) -> np.ndarray:
     x = np.clip(x, 0.0, 1.0)
-    if dtype == np.uint8:
-        return np.rint(x * 255).astype(np.uint8)
-    if dtype == np.uint16:
-        return np.rint(x * 65535).astype(np.uint16)
-    return x.astype(dtype)
+    if np.dtype(dtype).kind == "f":
+        return x.astype(dtype)
+    return np.rint(x * full_scale(dtype, bit_depth)).astype(dtype)
 
 
 def make_capture(
@@ -46,10 +35,14 @@ def make_capture(
     sigma_s: float = 0.03,
     dtype: type = np.uint8,
     inverse: bool = False,
-) -> SyntheticCapture:
+    bit_depth: int | None = None,
+) -> CodedCapture:
     """Capture of `code` where pixel (y, x) sees codebook row columns[y, x].
 
-    Level of symbol s: ambient + albedo * s / (q - 1) (normalised intensity).
+    Level of symbol s: ambient + albedo * s / (q - 1) (normalised intensity).  Returns a
+    `CodedCapture`: frames (n, H, W), white, black (H, W), inverse (n, H, W) or None in `dtype`
+    (integers hold 0 .. full_scale(dtype, bit_depth)); truth (H, W) int64 = columns; equal
+    frame exposures (relative 1.0); noise = (sigma_r, sigma_s).
     """
     columns = np.asarray(columns, dtype=np.int64)
     h, w = columns.shape
@@ -61,10 +54,12 @@ def make_capture(
         sd = np.sqrt(sigma_r**2 + sigma_s**2 * level)
         return level + sd * rng.standard_normal(level.shape)
 
-    frames = _quantise(noisy(levels), dtype)
+    frames = _quantise(noisy(levels), dtype, bit_depth)
     inv = None
     if inverse:
-        inv = _quantise(noisy(ambient + alb[None] * (1 - symbols / (code.q - 1))), dtype)
-    white = _quantise(noisy(ambient + alb), dtype)
-    black = _quantise(noisy(np.full((h, w), ambient)), dtype)
-    return SyntheticCapture(frames=frames, white=white, black=black, columns=columns, inverse=inv)
+        inv = _quantise(noisy(ambient + alb[None] * (1 - symbols / (code.q - 1))), dtype, bit_depth)
+    white = _quantise(noisy(ambient + alb), dtype, bit_depth)
+    black = _quantise(noisy(np.full((h, w), ambient)), dtype, bit_depth)
+    return CodedCapture(frames=frames, white=white, black=black, inverse=inv, code=code, bit_depth=bit_depth,
+                        frame_exposure=np.ones(code.n + 2), exposure_unit="relative",
+                        noise=NoiseModel(float(sigma_r), float(sigma_s)), truth=columns)

@@ -1,6 +1,7 @@
 """Per-code lookup tables for the numba decoders (built once per code, cached).
 
-Binary codewords are packed into uint64 masks with bit ``i`` = frame ``i`` (n <= 64).  An
+Binary codewords are packed into uint64 masks with bit ``i`` = frame ``i`` (n <= 64), the bit
+order of `edge.codes.words.pack_words`; the kernels pack received words the same way.  An
 *information set* ``I`` is a set of k positions on which the codebook takes every k-bit value
 exactly once; ``col_of_info[pack_I(c)]`` maps a codeword to its column.  For linear codes the
 complement ``J`` carries the syndrome and a coset-leader table gives the nearest codeword of a
@@ -26,6 +27,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..codes import Code
+from ..codes.gf2 import as_ints, independent
+from ..codes.words import bit_weights, pack_words, unpack_words
 
 #: Largest n - k for which a full coset-leader table (2**(n-k) entries) is built.
 MAX_SYNDROME_BITS = 20
@@ -126,13 +129,12 @@ class CodeTables:
 
 
 def pack_masks(codebook: np.ndarray) -> np.ndarray:
-    """(M, n) 0/1 rows -> (M,) uint64 with bit i = column i (n <= 64)."""
+    """(M, n) 0/1 rows -> (M,) uint64 with bit i = column i (n <= 64): `edge.codes.words.pack_words`."""
     cb = np.asarray(codebook)
     n = cb.shape[1]
     if n > 64:
         raise ValueError(f"binary decoders support n <= 64 frames, got n={n}")
-    weights = np.left_shift(np.uint64(1), np.arange(n, dtype=np.uint64))
-    return (cb.astype(np.uint64) * weights).sum(axis=1, dtype=np.uint64)
+    return pack_words(cb)
 
 
 def _compress_tables(positions: np.ndarray, n: int) -> np.ndarray:
@@ -156,19 +158,7 @@ def _compress(masks: np.ndarray, table: np.ndarray) -> np.ndarray:
 
 def _independent_columns(cb: np.ndarray) -> list[int]:
     """Greedy set of codebook positions whose columns (as GF(2) vectors over rows) are independent."""
-    chosen: list[int] = []
-    basis: dict[int, int] = {}
-    for i in range(cb.shape[1]):
-        v = int.from_bytes(np.packbits(cb[:, i].astype(np.uint8)).tobytes(), "big")
-        while v:
-            lead = v.bit_length() - 1
-            if lead in basis:
-                v ^= basis[lead]
-            else:
-                basis[lead] = v
-                chosen.append(i)
-                break
-    return chosen
+    return independent(as_ints(cb.T))
 
 
 def _information_set(cb: np.ndarray, k: int) -> np.ndarray:
@@ -180,7 +170,7 @@ def _information_set(cb: np.ndarray, k: int) -> np.ndarray:
         candidates.append(indep[:k])
     for pos in candidates:
         pos_arr = np.array(pos, dtype=np.int64)
-        idx = (cb[:, pos_arr].astype(np.int64) << np.arange(k, dtype=np.int64)).sum(axis=1)
+        idx = pack_words(cb[:, pos_arr]).astype(np.int64)
         if np.unique(idx).size == size:
             return pos_arr
     return np.zeros(0, dtype=np.int64)
@@ -306,7 +296,7 @@ def _lane_tables(cb, masks, linear, info, comp_info, comp_syn, col_of_info, lead
     for b in range(size_bits):
         acc ^= np.where((idx >> b) & 1, masks[1 << b], np.uint64(0))
     column_linear = bool(size == 1 << size_bits and np.array_equal(acc, masks))
-    units = np.left_shift(np.uint64(1), np.arange(n, dtype=np.uint64))
+    units = bit_weights(n)
     info_bit = _compress(units, comp_info)
     syn_col = _compress(units ^ masks[col_of_info[info_bit]], comp_syn)
     out.update(column_linear=column_linear, info_bit=info_bit, syn_col=syn_col)
@@ -321,7 +311,7 @@ def _lane_tables(cb, masks, linear, info, comp_info, comp_syn, col_of_info, lead
         out["leader_col"] = col_of_info[out["leader_info"]].astype(np.int64)
     weight = np.bitwise_count(diff_masks).astype(np.int64)  # diff_masks are sorted by weight
     cls_weight, cls_count = np.unique(weight, return_counts=True)
-    bits = ((diff_masks[:, None] >> np.arange(n, dtype=np.uint64)) & np.uint64(1)).astype(bool)
+    bits = unpack_words(diff_masks, n).astype(bool)
     out.update(
         cls_weight=cls_weight.astype(np.int64),
         cls_start=np.r_[0, np.cumsum(cls_count)].astype(np.int64),
@@ -338,7 +328,7 @@ def _fold_tables(masks: np.ndarray, size_bits: int, n: int) -> dict:
     v = min(FOLD_LANE_BITS, b)
     g = np.zeros(n, np.int64)  # bit i of masks[col] = parity(g_i & col)
     for j in range(size_bits):
-        g |= ((masks[1 << j] >> np.arange(n, dtype=np.uint64)) & np.uint64(1)).astype(np.int64) << j
+        g |= unpack_words(masks[1 << j], n).astype(np.int64) << j
     def parity(x):
         return (np.bitwise_count(np.asarray(x, np.int64)) & 1).astype(np.int64)
     return {

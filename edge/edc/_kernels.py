@@ -8,8 +8,10 @@ O(open pixels x frames); round 1, where every pixel is open, uses the full-frame
 The kernels are serial on purpose: each takes a few milliseconds at 640 x 480, and a parallel
 kernel on a busy machine waits for its slowest thread (measured 3-10x slower than serial with the
 service's other threads and processes competing for 2 cores).  All kernels are exact integer / float32 re-implementations of the numpy
-reference functions next to them (`edge.edc.lookup.lookup_columns`, `edge.edc.adaptive.supported`);
-tests compare the two.
+reference functions next to them (`edge.decode.check.lookup_columns`, `edge.edc.adaptive.supported`);
+tests compare the two.  Words are packed in the one bit order of `edge.codes.words.pack_words`
+(bit i = frame i, frame 0 = least significant bit), so `edge.codes.words.membership_table` and
+`packed_codewords` index them.
 """
 
 from __future__ import annotations
@@ -53,13 +55,14 @@ def gather_pixels(image: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarr
 @njit(cache=True)
 def pack_words_at(frames: np.ndarray, start: int, n: int, ys: np.ndarray, xs: np.ndarray,
                   hi: np.ndarray, lo: np.ndarray) -> np.ndarray:
-    """(P,) int64 words: bit i (frame start + i, MSB first) = sample > (hi + lo) / 2."""
+    """(P,) int64 words: bit i (frame start + i; `edge.codes.words.pack_words` order, frame 0 = LSB)
+    = sample > (hi + lo) / 2."""
     out = np.empty(ys.size, dtype=np.int64)
     for p in range(ys.size):
         y, x = ys[p], xs[p]
         t = (hi[p] + lo[p]) * np.float32(0.5)
         w = np.int64(0)
-        for i in range(n):
+        for i in range(n - 1, -1, -1):  # last frame first: frame 0 ends in bit 0
             w = (w << 1) | (1 if np.float32(frames[start + i, y, x]) > t else 0)
         out[p] = w
     return out
@@ -130,7 +133,7 @@ def support_at(ys: np.ndarray, xs: np.ndarray, cols: np.ndarray, ref: np.ndarray
 
 @njit(cache=True)
 def pack_words_full(frames: np.ndarray, start: int, n: int, hi: np.ndarray, lo: np.ndarray) -> np.ndarray:
-    """(H, W) int64 words of every pixel: bit i (frame start + i, MSB first) = sample > (hi + lo) / 2.
+    """(H, W) int64 words of every pixel: bit i (frame start + i, frame 0 = LSB) = sample > (hi + lo) / 2.
 
     The full-frame form of `pack_words_at` (round 1 decodes every pixel): row by row,
     frames then columns inside a row (sequential memory access).
@@ -141,7 +144,7 @@ def pack_words_full(frames: np.ndarray, start: int, n: int, hi: np.ndarray, lo: 
         t = np.empty(w, dtype=np.float32)
         for x in range(w):
             t[x] = (np.float32(hi[y, x]) + np.float32(lo[y, x])) * np.float32(0.5)
-        for i in range(n):
+        for i in range(n - 1, -1, -1):  # last frame first: frame 0 ends in bit 0
             for x in range(w):
                 out[y, x] = (out[y, x] << 1) | (np.float32(frames[start + i, y, x]) > t[x])
     return out
@@ -227,7 +230,7 @@ def round1_words(frames: np.ndarray, n: int, white: np.ndarray, black: np.ndarra
 
     Per pixel: levels (self: min / max of the n frames; else white / black), the floor (self:
     ``(max - min) / fs > sigmas * sqrt(sr2 + ss2 * max / fs + q)``; else ``(white - black) / fs >
-    min_contrast``), the word (bit = sample > midpoint, frame 0 = MSB), the membership table,
+    min_contrast``), the word (bit i = frame i > midpoint, frame 0 = LSB), the membership table,
     and the guess (``given`` if has_given, else the column or the nearest codeword), each checked
     against ``n_columns`` and ``unmeasurable``.  Returns (candidate column (H, W) int32: a
     codeword's column, -1 where the word is none or the pixel under the floor; open (H, W) bool:
@@ -259,7 +262,7 @@ def round1_words(frames: np.ndarray, n: int, white: np.ndarray, black: np.ndarra
                 lo[x] = np.float32(black[y, x])
         for x in range(w):
             word[x] = 0
-        for i in range(n):
+        for i in range(n - 1, -1, -1):  # last frame first: frame 0 ends in bit 0
             for x in range(w):
                 t = (hi[x] + lo[x]) * np.float32(0.5)
                 word[x] = (word[x] << 1) | (np.float32(frames[i, y, x]) > t)

@@ -101,6 +101,7 @@ from typing import Any
 
 import numpy as np
 
+from edge.capture import full_scale
 from edge.codes import Code
 
 from . import _kernels
@@ -415,7 +416,7 @@ class AdaptiveScan:
         if first:
             self._camera_shape = f.shape[1:]
             if self.full_scale is None:
-                self.full_scale = float(np.iinfo(f.dtype).max) if np.issubdtype(f.dtype, np.integer) else 1.0
+                self.full_scale = full_scale(f.dtype)  # the one full-scale rule (edge.capture)
             h, w = self._camera_shape
             self._column = np.full((h, w), -1, dtype=np.int32)
             self._guess = np.full((h, w), -1, dtype=np.int32)

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..capture import CodedCapture, split_stack
 from ..sensors.base import Frame
 
 
@@ -41,6 +42,19 @@ class Stack:
     def images(self) -> np.ndarray:
         """(m, H, W) array of the frames' images, schedule order."""
         return np.stack([f.image for f in self.frames])
+
+    def coded(self, images: np.ndarray, n: int, **fields) -> CodedCapture:
+        """The `edge.capture.CodedCapture` of this stack's (n + 2, H, W) ``images`` (code frames,
+        white, black: the frames' images, or their de-spread form when every image is made of
+        several frames, ``len(frames) = (n + 2) * L``).  frame_exposure: microseconds of each
+        image (the sum of its frames' ``exposure_us``).  ``fields``: other CodedCapture fields
+        (code, columns, stripe, bit_depth, noise)."""
+        m = n + 2
+        exposure = None
+        if len(self.frames) % m == 0:
+            per = np.array([f.exposure_us for f in self.frames], dtype=np.float64).reshape(m, -1)
+            exposure = per.sum(axis=1)
+        return split_stack(images, n, frame_exposure=exposure, exposure_unit="us", **fields)
 
 
 @dataclass

@@ -144,7 +144,9 @@ class DepthPipeline:
         """Depth for one complete stack (see module docstring)."""
         t0 = time.perf_counter()
         images = self.stacked(stack.frames)
-        codes, white, black = images[: self.n], images[self.n], images[self.n + 1]
+        cap = stack.coded(images, self.n, code=self.code, columns=self.columns, stripe=self.stripe,
+                          bit_depth=self.profile.camera.bits if images.dtype == np.uint16 else None)
+        codes, white, black = cap.frames, cap.white, cap.black
         decoded = self.decode(codes, white, black)
         valid = self.validity(decoded)
         column = np.where(valid, np.asarray(decoded.column, dtype=np.int32), np.int32(-1))

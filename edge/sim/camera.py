@@ -66,8 +66,10 @@ class CameraModel:
 
     @property
     def levels(self) -> int:
-        """Largest code value, ``2**bits - 1``."""
-        return (1 << self.bits) - 1
+        """Largest code value, ``2**bits - 1`` (`edge.capture.full_scale` of the frames)."""
+        from ..capture import dtype_for_bits, full_scale
+
+        return int(full_scale(dtype_for_bits(self.bits), self.bits))
 
     def frame_exposure(self, n_frames: int) -> float:
         """Per-frame exposure of an ``n_frames`` capture at fixed total exposure."""

@@ -16,40 +16,20 @@ and inter-reflection are computed from the warped frames actually projected.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import cv2
 import numpy as np
 
+from ..capture import CodedCapture, NoiseModel, dtype_for_bits
 from ..codes import Code
 from ._kernels import expose, warp_linear, warp_nearest
 from .camera import CameraModel
 from .scene import Scene
 
 
-@dataclass(frozen=True, eq=False)
-class Capture:
-    """A simulated capture of a code at fixed total exposure.
-
-    Attributes:
-        frames: (n, H, W) uint8 (8 bits) or uint16 camera frames, frame 0 first.
-        white: (H, W) calibration frame with the projector all on.
-        black: (H, W) calibration frame with the projector all off.
-        exposure: per-frame exposure of every frame (``total_exposure / n``).
-        code: the code projected.
-        stripe: projector columns per codeword.
-        bits: ADC bits of the frames.
-        camera: the camera model the frames were captured with.
-    """
-
-    frames: np.ndarray
-    white: np.ndarray
-    black: np.ndarray
-    exposure: float
-    code: Code
-    stripe: int
-    bits: int
-    camera: CameraModel | None = None
+#: A simulated capture is the one coded-capture type (`edge.capture.CodedCapture`): frames,
+#: white, black, code, stripe, bit_depth = ADC bits, frame_exposure (relative units, n + 2 equal
+#: values at fixed total exposure), noise (the camera's sigma_r, sigma_s), camera.
+Capture = CodedCapture
 
 
 def _as_rng(rng: np.random.Generator | int | None) -> np.random.Generator:
@@ -192,11 +172,11 @@ def capture(scene: Scene, projector_frames: np.ndarray, camera: CameraModel, *,
             normals = gen.standard_normal(e.shape, dtype=np.float32)
             return _expose_numpy(e, albedo, float(t * camera.projector), float(t * camera.ambient), normals,
                                  float(camera.sigma_r**2), float(camera.sigma_s**2), float(camera.levels),
-                                 np.uint8 if camera.bits == 8 else np.uint16)
+                                 dtype_for_bits(camera.bits))
     if rows is None and extra_irradiance is not None:
         e = np.ascontiguousarray(e + np.asarray(extra_irradiance, np.float32))
     normals = gen.standard_normal(e.shape, dtype=np.float32)
-    out = np.empty(e.shape, dtype=np.uint8 if camera.bits == 8 else np.uint16)
+    out = np.empty(e.shape, dtype=dtype_for_bits(camera.bits))
     expose(e, albedo, float(t * camera.projector), float(t * camera.ambient), normals,
            float(camera.sigma_r**2), float(camera.sigma_s**2), float(camera.levels), out)
     return out
@@ -243,5 +223,6 @@ def capture_code(scene: Scene, code: Code, camera: CameraModel, *, rng: np.rando
     stack = np.concatenate([profiles, np.ones((1, wp), np.float32), np.zeros((1, wp), np.float32)], axis=0)
     t = camera.frame_exposure(code.n)
     frames = capture(scene, stack, camera, rng=rng, exposure=t)
-    return Capture(frames=frames[:-2], white=frames[-2], black=frames[-1], exposure=t, code=code,
-                   stripe=int(stripe), bits=camera.bits, camera=camera)
+    return CodedCapture(frames=frames[:-2], white=frames[-2], black=frames[-1], code=code, stripe=int(stripe),
+                        bit_depth=camera.bits, frame_exposure=np.full(code.n + 2, t), exposure_unit="relative",
+                        noise=NoiseModel(float(camera.sigma_r), float(camera.sigma_s)), camera=camera)
