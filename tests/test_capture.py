@@ -29,7 +29,7 @@ def test_full_scale_is_one_rule():
     with pytest.raises(ValueError, match="expected dtype uint8, uint16"):
         full_scale(np.int32)
     # every place that had its own rule now agrees
-    from edge.runtime.pipeline import max_value
+    from edge.device import full_scale as max_value
     from edge.sim import CameraModel
 
     for bits in (8, 10, 12, 16):
