@@ -11,6 +11,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .. import triangulation
+
 from .scene import Scene
 
 THRESHOLDS = (0, 1, 2)
@@ -83,11 +85,8 @@ def error_rate(decoded_column: np.ndarray, scene: Scene, *, threshold: int = 0, 
 
 def depth_from_columns(decoded_column: np.ndarray, scene: Scene, *, stripe: int = 1) -> np.ndarray:
     """Depth in metres (float32, NaN where invalid) from decoded codewords (stripe centre)."""
-    col = np.asarray(decoded_column).astype(np.float64)
-    h, w = col.shape
-    projector_col = (col + 0.5) * stripe - 0.5
-    disparity = np.arange(w, dtype=np.float64)[None, :] - projector_col
-    z = scene.geometry.depth_from_disparity(disparity)
+    col = np.asarray(decoded_column)
+    z = scene.geometry.depth_from_disparity(triangulation.disparity(triangulation.stripe_centre(col, stripe)))
     return np.where(col >= 0, z, np.nan).astype(np.float32)
 
 

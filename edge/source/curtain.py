@@ -24,6 +24,7 @@ import numpy as np
 
 from ..codes.source import source_code
 from ..sim import Geometry, Scene, make_scene
+from ..triangulation import disparity_from_depth
 from .matched_filter import DEFAULT_THRESHOLD, despread
 
 
@@ -83,9 +84,9 @@ def curtain_slots(scene: Scene, devices: list[CurtainDevice], cfg: CurtainConfig
     g = scene.geometry
     h, w = scene.shape
     cols = [scene.column.astype(np.float64)]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for dev in devices[1:]:
-            cols.append(np.arange(w)[None, :] - (g.focal_px * dev.baseline_m / scene.depth_m.astype(np.float64) - g.doffs))
+    for dev in devices[1:]:
+        z = scene.depth_m.astype(np.float64)
+        cols.append(np.arange(w)[None, :] - disparity_from_depth(z, g.focal_px, dev.baseline_m, g.doffs))
     out = np.zeros((slots, h, w), np.float64)
     sub = (np.arange(cfg.subsamples) + 0.5) / cfg.subsamples
     x = np.arange(w)
@@ -147,12 +148,12 @@ def run_curtain(cfg: CurtainConfig, codes: tuple[str, ...] = ("1", "1"), *, phas
     L = lengths.pop()
     g = cfg.geometry()
     scene = make_scene(cfg.scene, cfg.width, cfg.height, seed=cfg.seed, geometry=g)
-    d0 = g.focal_px * g.baseline_m / cfg.curtain_depth_m - g.doffs
+    d0 = disparity_from_depth(cfg.curtain_depth_m, g.focal_px, g.baseline_m, g.doffs)
     phases = (phase_slots,) * (len(codes) - 1) if np.isscalar(phase_slots) else tuple(phase_slots)
     devices = [CurtainDevice(codes[0], g.baseline_m, d0, 0.0)]
     for i, c in enumerate(codes[1:]):
         b = cfg.second_baseline_m * (1 + 0.5 * i)
-        off = g.focal_px * b / cfg.false_depth_m - g.doffs
+        off = disparity_from_depth(cfg.false_depth_m, g.focal_px, b, g.doffs)
         devices.append(CurtainDevice(c, b, off, float(phases[i]) * 1.0))
     rng = np.random.default_rng(seed)
     slots = curtain_slots(scene, devices, cfg, rng=rng, slots=L)

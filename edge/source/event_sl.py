@@ -24,6 +24,7 @@ import numpy as np
 
 from ..codes.source import SourceCode, source_code
 from ..sim import CameraModel, Geometry, Scene, make_scene, projector_irradiance
+from ..triangulation import disparity_from_depth
 from .dots import block_match, random_dots
 from .events import EventSensor, event_frame, simulate_events
 from .matched_filter import DEFAULT_EVENT_THRESHOLD, filter_events
@@ -95,8 +96,7 @@ def _foreign_irradiance(scene: Scene, dots: np.ndarray, baseline_m: float) -> np
     focal length as ours) on the scene's surfaces (no shadows modelled)."""
     g = scene.geometry
     h, w = scene.shape
-    with np.errstate(divide="ignore", invalid="ignore"):
-        col = np.arange(w)[None, :] - (g.focal_px * baseline_m / scene.depth_m - g.doffs)
+    col = np.arange(w)[None, :] - disparity_from_depth(scene.depth_m, g.focal_px, baseline_m, g.doffs)
     ok = np.isfinite(col)
     ci = np.where(ok, np.floor(col + 0.5), -1).astype(np.int64)
     ok &= (ci >= 0) & (ci < dots.shape[1])
