@@ -23,8 +23,10 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from edge.codes.source import correlation_report, family, source_code  # noqa: E402
-from edge.source.curtain import CurtainConfig, run_curtain  # noqa: E402
-from edge.source.event_sl import EventSLConfig, event_metrics, run_event_sl  # noqa: E402
+from edge.eval.curtain import run_curtain  # noqa: E402
+from edge.eval.event_sl import event_metrics, run_event_sl  # noqa: E402
+from edge.source.curtain import CurtainConfig  # noqa: E402
+from edge.source.event_sl import EventSLConfig  # noqa: E402
 
 
 def codes_report(out: Path) -> None:

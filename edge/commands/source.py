@@ -53,7 +53,8 @@ def _room_codes(args: argparse.Namespace) -> int:
 
 
 def _event_demo(args: argparse.Namespace) -> int:
-    from ..source.event_sl import EventSLConfig, event_metrics, run_event_sl
+    from ..eval.event_sl import event_metrics, run_event_sl
+    from ..source.event_sl import EventSLConfig
 
     w, h = parse_size(args.size, minimum=16)
     cfg = EventSLConfig(width=w, height=h, code=args.code, flicker_hz=args.flicker, periods=args.periods)
@@ -70,7 +71,8 @@ def _event_demo(args: argparse.Namespace) -> int:
 
 
 def _curtain_demo(args: argparse.Namespace) -> int:
-    from ..source.curtain import CurtainConfig, run_curtain
+    from ..eval.curtain import run_curtain
+    from ..source.curtain import CurtainConfig
 
     w, h = parse_size(args.size, minimum=16)
     cfg = CurtainConfig(width=w, height=h)
