@@ -392,7 +392,8 @@ def test_loop_never_lowers_correct_fraction_on_any_gi_scene(code):
 
 
 def test_later_rounds_never_change_or_invalidate_a_reported_pixel():
-    from edge.eval.edc import gi_camera, make_gi_scene, truth_columns
+    from edge.eval.edc import gi_camera, make_gi_scene
+    from edge.sim.metrics import truth_columns
     from edge.sim import capture
 
     label = "corner-30-2b"

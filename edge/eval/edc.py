@@ -42,6 +42,7 @@ from ..edc.adaptive import (DEFAULT_MIN_CONTRAST, DEFAULT_MIN_RANGE_SIGMAS, DEFA
 from ..edc.gupta import EnsembleScheme
 from ..edc.maxminsw import maxminsw_code, stripe_widths
 from ..sim import CameraModel, capture, capture_code, make_scene
+from ..sim.metrics import truth_columns
 from .report import pyplot, save_figure
 
 #: Decoder settings of every single pass of this evaluation (the unchecked reference a sensor
@@ -102,12 +103,6 @@ def gi_camera(label: str, camera: Any = None):
     cam = camera if camera is not None else CameraModel()
     overrides = _entry(label).get("camera") or {}
     return cam.with_(**overrides) if overrides else cam
-
-
-def truth_columns(scene: Any, stripe: int = 1) -> np.ndarray:
-    """(H, W) int32 true codeword index (column // stripe), -1 where the projector does not reach."""
-    col = np.asarray(scene.column_int)
-    return np.where(scene.lit & (col >= 0), col // stripe, -1).astype(np.int32)
 
 
 @dataclass(frozen=True)
@@ -243,8 +238,7 @@ def score_loop(scene: Any, camera: Any, scheme: Any, *, rng: Any = 0, max_rounds
     scan = AdaptiveScan(scheme, int(scene.geometry.projector_width), scene.height, full_scale=float(camera.levels),
                         binarisation=binarisation, max_rounds=1,
                         noise=options.get("noise", (float(camera.sigma_r), float(camera.sigma_s))))
-    frames = scan.start()
-    scan.update(capture(scene, frames, camera, rng=gen, exposure=camera.frame_exposure(scan.scheme.n_frames)))
+    scan.run(lambda frames: capture(scene, frames, camera, rng=gen, exposure=camera.frame_exposure(scan.scheme.n_frames)))
     single = scan.guesses
     # the conventional single pass (white + black, threshold (white + black) / 2), for reference
     conv = AdaptiveScan(scheme, int(scene.geometry.projector_width), scene.height, full_scale=float(camera.levels),

@@ -239,6 +239,11 @@ def _points(cfg: SweepConfig) -> list[tuple[str, str, float, dict[str, Any]]]:
     return pts
 
 
+def configurations(cfg: SweepConfig) -> list[DecodeSettings]:
+    """Every distinct `DecodeSettings` the sweep ``cfg`` decodes with (first-use order)."""
+    return list(dict.fromkeys(job["settings"] for *_, job in _points(cfg)))
+
+
 def oracle_calibration(scene: Scene, camera: CameraModel, exposure: float) -> tuple[np.ndarray, np.ndarray]:
     """Noise-free (still quantised) white and black frames of ``scene`` at ``exposure``."""
     wp = int(scene.geometry.projector_width)

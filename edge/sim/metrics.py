@@ -69,6 +69,12 @@ def truth(scene: Scene, *, stripe: int = 1, code_size: int | None = None) -> tup
     return gt, valid
 
 
+def truth_columns(scene: Scene, stripe: int = 1) -> np.ndarray:
+    """(H, W) int32 true codeword index (`truth`), -1 where it is not GT-valid (projector does not reach)."""
+    gt, valid = truth(scene, stripe=stripe)
+    return np.where(valid, gt, -1).astype(np.int32)
+
+
 def error_map(decoded_column: np.ndarray, scene: Scene, *, threshold: int = 0, stripe: int = 1) -> np.ndarray:
     """(H, W) bool: GT-valid pixels whose decoded column is invalid or off by more than ``threshold``."""
     col = _check(decoded_column, scene, threshold, stripe)
