@@ -60,6 +60,13 @@ class Geometry:
         params.update(overrides)
         return cls(**params)  # type: ignore[arg-type]
 
+    @classmethod
+    def projector_as_wide(cls, width: int, height: int) -> "Geometry":
+        """The light-source scenarios' pair (`edge.source`): a projector as wide as the ``width`` x
+        ``height`` camera, both principal points at the centre, focal 300 px per 320 columns."""
+        return cls.default(width, height, focal_px=300.0 * width / 320.0, cx_projector=width / 2.0,
+                           projector_width=width)
+
     @property
     def doffs(self) -> float:
         """``cx_projector - cx_camera`` (pixels)."""

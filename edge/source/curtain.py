@@ -63,9 +63,7 @@ class CurtainConfig:
     subsamples: int = 4
 
     def geometry(self) -> Geometry:
-        f = 300.0 * self.width / 320.0
-        return Geometry.default(self.width, self.height, focal_px=f, cx_projector=self.width / 2.0,
-                                projector_width=self.width)
+        return Geometry.projector_as_wide(self.width, self.height)
 
 
 def _uncoded(code: str) -> bool:

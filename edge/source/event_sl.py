@@ -72,9 +72,7 @@ class EventSLConfig:
     sensor: dict = field(default_factory=dict)
 
     def geometry(self) -> Geometry:
-        f = 300.0 * self.width / 320.0
-        return Geometry.default(self.width, self.height, focal_px=f, cx_projector=self.width / 2.0,
-                                projector_width=self.width)
+        return Geometry.projector_as_wide(self.width, self.height)
 
 
 def _foreign_irradiance(scene: Scene, dots: np.ndarray, baseline_m: float) -> np.ndarray:
