@@ -1,6 +1,7 @@
 """Evaluation of event-camera structured light with a source-coded dot projector (paper section 5,
 example 1): `run_event_sl` runs one scenario of `edge.source.event_sl.EventSLConfig` end to end,
-`event_metrics` scores it (``edge source event-demo``, ``tools/eval_source.py``).
+`event_metrics` scores it, `scenarios` is the grid both reports run (uncoded / coded x clean /
+interference; ``edge source event-demo``, ``tools/eval_source.py``).
 
 The model and the processing are `edge.source.event_sl` (`event_intensity`, `label_events`,
 `decode_event_frames`); the DVS is `edge.source.events`; this module only wires them to a
@@ -109,4 +110,22 @@ def event_metrics(result: EventSLResult, reference: EventSLResult | None = None,
     out.update(valid=float(np.mean(valid)), mae_px=float(np.nanmean(mae)), bad1=float(np.nanmean(bad1)))
     if reference is not None:
         out["agree1"] = float(np.mean(agree))
+    return out
+
+
+def run_label(cfg: EventSLConfig, coded: bool) -> str:
+    """How reports name a run: ``"coded <code>"`` or ``"uncoded 10"``."""
+    return f"coded {cfg.code}" if coded else "uncoded 10"
+
+
+def scenarios(cfg: EventSLConfig) -> list[tuple[bool, str, EventSLResult, dict]]:
+    """The evaluation grid: (coded, "clean" | "interference", result, `event_metrics`) for uncoded
+    then coded projection, each without and with the interferer (the interference run is scored
+    against the clean one)."""
+    out = []
+    for coded in (False, True):
+        clean = run_event_sl(cfg, coded=coded, interference=False)
+        noisy = run_event_sl(cfg, coded=coded, interference=True)
+        for name, res, ref in (("clean", clean, None), ("interference", noisy, clean)):
+            out.append((coded, name, res, event_metrics(res, ref)))
     return out
