@@ -37,7 +37,7 @@ def reference_decoder(cap: Capture, code: Code, settings: DecodeSettings,
         from edge.decode.levels import initial_levels, refine_levels
 
         scale = np.float32(1.0 / ((1 << cap.bits) - 1))
-        fn, wn, bn = initial_levels(f * scale, white * scale, black * scale)
+        wn, bn = initial_levels(f * scale, white * scale, black * scale)  # (white, black)
         col, _ = _brute(f * scale, wn, bn, code, method, band, cap.stripe, 1e-6)
         wn, bn = refine_levels(f * scale, wn, bn, code, col)
         return _brute(f * scale, wn, bn, code, method, band, cap.stripe, 1e-6)
