@@ -54,3 +54,13 @@ def test_profile_rejects_a_configuration_it_cannot_run():
     bad["decoder"]["levels"] = "oracle"
     with pytest.raises(ValueError, match="levels"):
         apply_update(load_profile("sim-dlp"), bad)
+
+
+def test_curtain_demo_cli_runs_the_eval_package(capsys):
+    from edge.cli import main
+
+    assert main(["source", "curtain-demo", "--size", "48x32"]) == 0
+    rows = [line.split() for line in capsys.readouterr().out.splitlines()[1:]]
+    assert [r[0] for r in rows] == ["1/1", "1100/0101", "1100/0101", "1100/0101", "001011/001101/011111"]
+    assert float(rows[0][-2]) > 0.1  # uncoded: the second laser's false curtain is detected
+    assert all(float(r[-2]) == 0.0 and float(r[-1]) < 0.01 for r in rows[1:])  # coded: none, none missed
