@@ -57,6 +57,7 @@ from typing import Any, Callable, Iterable
 import numpy as np
 
 from ..codes import Code, get_code
+from ..decode import decode
 from ..decode.settings import DEFAULT_SETTINGS, DecodeSettings
 from ..sim.camera import CameraModel
 from ..sim.metrics import error_map, evaluate, truth
@@ -152,7 +153,6 @@ def point_settings(method: str, levels: str, camera: CameraModel) -> DecodeSetti
 
 def edge_decoder() -> Decoder:
     """Decoder function backed by `edge.decode.decode` with the point's `DecodeSettings`."""
-    from ..decode import decode  # noqa: PLC0415 - the decoder sits beside sim, imported when used
 
     def run(cap: Capture, code: Code, settings: DecodeSettings, band: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
         out = decode(cap.frames, cap.white, cap.black, code, settings=settings, min_disparity=band[0],
