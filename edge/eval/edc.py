@@ -14,9 +14,9 @@ Definitions (all counts in camera pixels):
 * single pass: one capture of the code at fixed total exposure; hard decision then the nearest
   codeword (`edge.decode.decode` with `SINGLE_PASS`: method "hard", min_contrast =
   min_confidence = 0, i.e. every pixel's column, no rejection) -- what a sensor reports without
-  any error map.  A pixel is WRONG when its column differs from the true
-  one or when the projector does not reach it at all (ground truth -1) -- indirect light alone
-  produces plausible-looking but meaningless words there.
+  any error map.  A pixel is WRONG when its column differs from the true one
+  (`edge.sim.metrics.truth_columns`) or when the projector does not reach it at all (ground
+  truth -1) -- indirect light alone produces plausible-looking but meaningless words there.
 * error maps (True = reject): EDC (`edge.decode.check`, parameter-free), contrast
   (`contrast_error_map`, white - black < t), and their OR.  caught = wrong pixels rejected / wrong
   pixels; false rejects = good pixels rejected / good pixels.
