@@ -271,7 +271,7 @@ def test_bad_inputs():
 
 @pytest.mark.parametrize("label", ["v-groove-30", "scattering"])
 def test_targets_on_small_gi_scene(label):
-    from edge.edc.evaluate import make_gi_scene, score_loop
+    from edge.eval.edc import make_gi_scene, score_loop
 
     _, CameraModel = _sim()
     scene = make_gi_scene(label, 128, 64, seed=0)
@@ -284,7 +284,7 @@ def test_targets_on_small_gi_scene(label):
 
 
 def test_neighbour_support_removes_unreached_false_passes():
-    from edge.edc.evaluate import make_gi_scene, score_loop
+    from edge.eval.edc import make_gi_scene, score_loop
 
     _, CameraModel = _sim()
     scene = make_gi_scene("v-groove-30", 128, 64, seed=0)
@@ -382,7 +382,7 @@ def test_region_growing_keeps_smooth_guesses_only():
 
 @pytest.mark.parametrize("code", [EDC, "gray-10+crc5"])
 def test_loop_never_lowers_correct_fraction_on_any_gi_scene(code):
-    from edge.edc.evaluate import GI_SCENES, gi_camera, make_gi_scene, score_loop
+    from edge.eval.edc import GI_SCENES, gi_camera, make_gi_scene, score_loop
 
     for label in GI_SCENES:
         scene = make_gi_scene(label, 96, 64, seed=0)
@@ -392,7 +392,8 @@ def test_loop_never_lowers_correct_fraction_on_any_gi_scene(code):
 
 
 def test_later_rounds_never_change_or_invalidate_a_reported_pixel():
-    from edge.edc.evaluate import gi_camera, make_gi_scene, truth_columns
+    from edge.eval.edc import gi_camera, make_gi_scene
+    from edge.sim.metrics import truth_columns
     from edge.sim import capture
 
     label = "corner-30-2b"
@@ -416,7 +417,7 @@ def test_later_rounds_never_change_or_invalidate_a_reported_pixel():
 
 @pytest.mark.parametrize("label", ["corner-30-2b", "defocus-0.8"])
 def test_broken_scene_is_brought_under_half_a_percent_wrong_in_45_frames(label):
-    from edge.edc.evaluate import gi_camera, make_gi_scene, score_loop
+    from edge.eval.edc import gi_camera, make_gi_scene, score_loop
 
     scene = make_gi_scene(label, 96, 64, seed=0)
     score, _ = score_loop(scene, gi_camera(label), EDC, rng=0)
@@ -428,7 +429,7 @@ def test_broken_scene_is_brought_under_half_a_percent_wrong_in_45_frames(label):
 
 
 def test_gray_crc_on_the_30_degree_groove_ends_at_or_above_the_single_pass():
-    from edge.edc.evaluate import gi_camera, make_gi_scene, score_loop
+    from edge.eval.edc import gi_camera, make_gi_scene, score_loop
 
     scene = make_gi_scene("v-groove-30", 128, 96, seed=0)
     score, _ = score_loop(scene, gi_camera("v-groove-30"), "gray-10+crc5", rng=0)
@@ -456,7 +457,7 @@ def test_reproject_all_baseline_projects_everything_every_round():
 
 
 def test_gi_scene_parameters_and_per_bit_contrast():
-    from edge.edc.evaluate import gi_camera, make_gi_scene, per_bit_contrast
+    from edge.eval.edc import gi_camera, make_gi_scene, per_bit_contrast
     from edge.sim import CameraModel, make_scene
 
     assert gi_camera("defocus-0.8").defocus_sigma == 0.8 and gi_camera("v-groove") == CameraModel()
@@ -547,7 +548,7 @@ def test_bench_service_sets_edc_rounds(tmp_path):
 
 @pytest.mark.parametrize("mode", ["self", "calibrated"])
 def test_fast_round1_matches_the_generic_path(mode):
-    from edge.edc.evaluate import gi_camera, make_gi_scene
+    from edge.eval.edc import gi_camera, make_gi_scene
     from edge.sim import capture
 
     scene, cam = make_gi_scene("scatter-s4", 96, 64, seed=0), gi_camera("scatter-s4")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from edge.codes import get_code
-from edge.sim.sweep import BANDS, SweepConfig, claims, edge_decoder, reorder, run_sweep, write_report
+from edge.eval.sweep import BANDS, SweepConfig, claims, edge_decoder, reorder, run_sweep, write_report
 
 
 def test_reorder_keeps_the_encoder_and_changes_only_the_column_order():

@@ -233,7 +233,8 @@ def test_event_filter_bad_inputs_and_out_of_sensor():
 
 # ---------------------------------------------------------------- systems
 def test_event_sl_coding_removes_interference():
-    from edge.source.event_sl import EventSLConfig, event_metrics, run_event_sl
+    from edge.eval.event_sl import event_metrics, run_event_sl
+    from edge.source.event_sl import EventSLConfig
 
     cfg = EventSLConfig(width=128, height=96, periods=3)
     clean = run_event_sl(cfg, coded=True, interference=False)
@@ -247,7 +248,8 @@ def test_event_sl_coding_removes_interference():
 
 
 def test_light_curtain_false_detections_removed_by_codes():
-    from edge.source.curtain import CurtainConfig, run_curtain
+    from edge.eval.curtain import run_curtain
+    from edge.source.curtain import CurtainConfig
 
     cfg = CurtainConfig(width=96, height=48)
     before = run_curtain(cfg, ("1", "1")).rates()

@@ -9,7 +9,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from edge.edc.report import run_report
+from edge.eval.edc import run_report
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -23,8 +23,10 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from edge.codes.source import correlation_report, family, source_code  # noqa: E402
-from edge.source.curtain import CurtainConfig, run_curtain  # noqa: E402
-from edge.source.event_sl import EventSLConfig, event_metrics, run_event_sl  # noqa: E402
+from edge.eval.curtain import run_curtain  # noqa: E402
+from edge.eval.event_sl import run_label, scenarios  # noqa: E402
+from edge.source.curtain import CurtainConfig  # noqa: E402
+from edge.source.event_sl import EventSLConfig  # noqa: E402
 
 
 def codes_report(out: Path) -> None:
@@ -40,14 +42,9 @@ def codes_report(out: Path) -> None:
 
 def event_sl(out: Path, w: int, h: int) -> None:
     cfg = EventSLConfig(width=w, height=h, flicker_hz=100.0)
-    rows, panels = [], []
-    for coded in (False, True):
-        clean = run_event_sl(cfg, coded=coded, interference=False)
-        noisy = run_event_sl(cfg, coded=coded, interference=True)
-        for name, res, ref in (("clean", clean, None), ("interference", noisy, clean)):
-            m = event_metrics(res, ref)
-            rows.append((f"{'coded ' + cfg.code if coded else 'uncoded 10'}, {name}", m))
-        panels.append((coded, noisy))
+    runs = scenarios(cfg)
+    rows = [(f"{run_label(cfg, coded)}, {name}", m) for coded, name, _, m in runs]
+    panels = [(coded, res) for coded, name, res, _ in runs if name == "interference"]
     lines = ["| run | own events kept | foreign rejected | flicker rejected | valid | disparity MAE (px) | bad >1px | agrees with clean (1 px) |",
              "|---|---|---|---|---|---|---|---|"]
     for name, m in rows:

@@ -18,23 +18,26 @@ from pathlib import Path
 import numpy as np
 
 from edge.codes import Code
+from edge.decode.settings import DecodeSettings
+from edge.eval.sweep import DECODER_NAME, SweepConfig, edge_decoder, load_rows, read_findings, run_sweep, write_report
 from edge.sim.render import Capture
-from edge.sim.sweep import DECODER_NAME, SweepConfig, edge_decoder, load_rows, read_findings, run_sweep, write_report
 
 
-def reference_decoder(cap: Capture, code: Code, method: str, band: tuple[int, int],
-                      levels: str = "calibration") -> tuple[np.ndarray, np.ndarray]:
+def reference_decoder(cap: Capture, code: Code, settings: DecodeSettings,
+                      band: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
     """Brute-force decoder over the disparity band: squared distance of normalised intensities
     ("soft") or Hamming distance of thresholded symbols ("hard") to every candidate codeword.
-    levels="refined": decode once, refit the levels with `edge.decode.levels`, decode again."""
+    levels="refit": decode once, refit the levels with `edge.decode.levels`, decode again.
+    Reads only ``settings.method`` and ``settings.levels``."""
+    method, levels = settings.method, settings.levels
     f = cap.frames.astype(np.float32)
     white = cap.white.astype(np.float32)
     black = cap.black.astype(np.float32)
-    if levels == "refined":
+    if levels == "refit":
         from edge.decode.levels import initial_levels, refine_levels
 
         scale = np.float32(1.0 / ((1 << cap.bits) - 1))
-        fn, wn, bn = initial_levels(f * scale, white * scale, black * scale)
+        wn, bn = initial_levels(f * scale, white * scale, black * scale)  # (white, black)
         col, _ = _brute(f * scale, wn, bn, code, method, band, cap.stripe, 1e-6)
         wn, bn = refine_levels(f * scale, wn, bn, code, col)
         return _brute(f * scale, wn, bn, code, method, band, cap.stripe, 1e-6)

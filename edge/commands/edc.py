@@ -13,7 +13,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sub = p.add_subparsers(dest="edc_command", metavar="ACTION", required=True)
     r = sub.add_parser("run", help="run the adaptive loop on a simulated GI scene and print per-round figures")
     r.add_argument("--scene", default="v-groove",
-                   help="GI scene label of edge.edc.evaluate.GI_SCENES (v-groove, v-groove-30, bowl, scattering, "
+                   help="GI scene label of edge.eval.edc.GI_SCENES (v-groove, v-groove-30, bowl, scattering, "
                         "corner-30-2b, corner-45-2b, corner-60-gloss, corner-90-gloss, bowl-gloss, scatter-s1.5, "
                         "scatter-s4, scatter-s10, defocus-0.8, defocus-0.9)")
     r.add_argument("--code", default="xor02-10+crc5", help="EDC code name, or 'gupta' for the ensemble baseline")
@@ -33,7 +33,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from edge.edc.evaluate import gi_camera, make_gi_scene, score_loop
+    from edge.eval.edc import gi_camera, make_gi_scene, score_loop
     from edge.edc.gupta import EnsembleScheme
 
     w, h = parse_size(args.size)
@@ -56,7 +56,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _eval(args: argparse.Namespace) -> int:
-    from edge.edc.report import run_report
+    from edge.eval.edc import run_report
 
     w, h = parse_size(args.size)
     run_report(args.out, width=w, height=h, seed=args.seed, command=f"edge edc eval --size {args.size}")

@@ -2,7 +2,7 @@
 
     edge eval sweep [--quick] [--out docs/results/eval] [--experiments a,b] [--levels refined|calibration]
 
-runs the paper's comparisons (see `edge.sim.sweep`) with `edge.decode.decode`, with a progress
+runs the paper's comparisons (see `edge.eval.sweep`) with `edge.decode.decode`, with a progress
 bar, and writes PNG plots, results.json and README.md (claims, tables, per-albedo-band tables)
 into ``--out``; a ``findings.md`` already in ``--out`` is inserted into the README.
 """
@@ -32,16 +32,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run_sweep_command(args: argparse.Namespace) -> int:
-    from ..sim.sweep import DECODER_NAME, SweepConfig, edge_decoder, read_findings, run_sweep, write_report
+    from ..eval.sweep import DECODER_NAME, SweepConfig, edge_decoder, read_findings, run_sweep, write_report
 
     cfg = SweepConfig.quick() if args.quick else SweepConfig()
     cfg = replace(cfg, levels=args.levels)
     if args.experiments:
         cfg = replace(cfg, experiments=tuple(e.strip() for e in args.experiments.split(",") if e.strip()))
-    try:
-        decoder = edge_decoder()
-    except ImportError as exc:
-        raise ValueError(f"edge.decode.decode is not available ({exc}); use tools/eval_sweep.py --decoder reference")
+    decoder = edge_decoder()
     t0 = time.perf_counter()
     rows = run_sweep(cfg, decoder, progress=not args.no_progress)
     command = "edge eval sweep" + (" --quick" if args.quick else "") + (

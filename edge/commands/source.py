@@ -53,24 +53,22 @@ def _room_codes(args: argparse.Namespace) -> int:
 
 
 def _event_demo(args: argparse.Namespace) -> int:
-    from ..source.event_sl import EventSLConfig, event_metrics, run_event_sl
+    from ..eval.event_sl import run_label, scenarios
+    from ..source.event_sl import EventSLConfig
 
     w, h = parse_size(args.size, minimum=16)
     cfg = EventSLConfig(width=w, height=h, code=args.code, flicker_hz=args.flicker, periods=args.periods)
     print(f"{'run':<28}{'own kept':>9}{'foreign rej':>12}{'flicker rej':>12}{'valid':>7}{'MAE px':>8}{'agree1':>8}")
-    for coded in (False, True):
-        clean = run_event_sl(cfg, coded=coded, interference=False)
-        noisy = run_event_sl(cfg, coded=coded, interference=True)
-        for name, res, ref in (("clean", clean, None), ("interference", noisy, clean)):
-            m = event_metrics(res, ref)
-            label = f"{'coded ' + cfg.code if coded else 'uncoded 10'} {name}"
-            print(f"{label:<28}{m['own_kept']:>9.3f}{m['interference_rejected']:>12.3f}{m['ambient_rejected']:>12.3f}"
-                  f"{m['valid']:>7.3f}{m['mae_px']:>8.3f}{m.get('agree1', float('nan')):>8.3f}")
+    for coded, name, _, m in scenarios(cfg):
+        label = f"{run_label(cfg, coded)} {name}"
+        print(f"{label:<28}{m['own_kept']:>9.3f}{m['interference_rejected']:>12.3f}{m['ambient_rejected']:>12.3f}"
+              f"{m['valid']:>7.3f}{m['mae_px']:>8.3f}{m.get('agree1', float('nan')):>8.3f}")
     return 0
 
 
 def _curtain_demo(args: argparse.Namespace) -> int:
-    from ..source.curtain import CurtainConfig, run_curtain
+    from ..eval.curtain import run_curtain
+    from ..source.curtain import CurtainConfig
 
     w, h = parse_size(args.size, minimum=16)
     cfg = CurtainConfig(width=w, height=h)

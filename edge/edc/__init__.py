@@ -5,7 +5,8 @@ Public API::
     AdaptiveScan(scheme, projector_width, height, *, stripe=1, max_rounds=3, binarisation="self",
                  neighbour_tolerance=3, noise=(sigma_r, sigma_s), keep_guess=True, masking=True, ...)
         .start() -> frames; .update(captured[, guess=]) -> RoundResult; .next_frames() -> frames | None;
-        .result(); .guesses (round-1 single-pass columns)
+        .result(); .guesses (round-1 single-pass columns); .run(capture[, guess=]) -> AdaptiveResult
+        (the one driver: start, then update(capture(frames)) every round until done)
         Only open pixels are decoded per round (sparse kernels, `edge.edc._kernels`); verified
         columns are never replaced; reported pixels stay reported (never worse than round 1).
     run_adaptive(scene, camera, scheme, *, rng=0, stripe=1, max_rounds=3, ...) -> AdaptiveResult

@@ -97,7 +97,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -642,6 +642,22 @@ class AdaptiveScan:
             return None
         return self._frames(self._lit, first=False)
 
+    def run(self, capture: Callable[[np.ndarray], np.ndarray], *, guess: np.ndarray | None = None) -> AdaptiveResult:
+        """The whole loop, the one driver of a scan: `start`, then ``update(capture(frames))`` for
+        every round's projector frames until `next_frames` says done; returns `result`.
+
+        capture: (m, H, Wp) uint8 projector frames -> (m, H, W) captured camera frames (round 1
+        may also be frames already captured, e.g. the service's stack).  guess: round 1's
+        ``guess`` (see `update`).
+        """
+        frames = self.start()
+        first = True
+        while frames is not None:
+            self.update(capture(frames), guess=guess if first else None)
+            first = False
+            frames = self.next_frames()
+        return self.result()
+
     def result(self) -> AdaptiveResult:
         """The column map, valid mask and per-round statistics so far."""
         self._require_started()
@@ -672,8 +688,4 @@ def run_adaptive(scene: Any, camera: Any, scheme: Any, *, rng: np.random.Generat
     scan = AdaptiveScan(scheme, int(scene.geometry.projector_width), scene.height, stripe=stripe,
                         max_rounds=max_rounds, full_scale=float(camera.levels), **options)
     exposure = camera.frame_exposure(scan.scheme.n_frames)
-    frames = scan.start()
-    while frames is not None:
-        scan.update(capture(scene, frames, camera, rng=gen, exposure=exposure))
-        frames = scan.next_frames()
-    return scan.result()
+    return scan.run(lambda frames: capture(scene, frames, camera, rng=gen, exposure=exposure))

@@ -3,8 +3,9 @@
 Rectified projector-camera pair, Middlebury convention (docs/architecture.md):
 ``d = x_camera - column`` and ``Z = focal_px * baseline_m / (d + doffs)`` with
 ``doffs = cx_projector - cx_camera``.  Depth leaves as uint16 millimetres, 0 = invalid
-(ROS REP 118 16UC1).  All arithmetic is float64 numpy with round-half-even, which is
-deterministic across runs and machines.
+(ROS REP 118 16UC1).  The formula itself is `edge.triangulation` (shared with the simulator).
+All arithmetic is float64 numpy with round-half-even, which is deterministic across runs and
+machines.
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ from __future__ import annotations
 from typing import Protocol
 
 import numpy as np
+
+from .. import triangulation
 
 
 class DepthGeometry(Protocol):
@@ -37,20 +40,14 @@ def projector_column(codeword_index: np.ndarray, stripe: int = 1) -> np.ndarray:
 
     codeword_index: (H, W) int, -1 = invalid -> NaN.  stripe: projector columns per codeword.
     """
-    if stripe < 1:
-        raise ValueError(f"stripe must be >= 1 projector column per codeword, got {stripe}")
-    idx = _check_column(codeword_index)
-    out = idx.astype(np.float64) * stripe + (stripe - 1) / 2.0
-    out[idx < 0] = np.nan
-    return out
+    return triangulation.stripe_centre(_check_column(codeword_index), stripe)
 
 
 def column_to_disparity(column: np.ndarray) -> np.ndarray:
     """(H, W) projector column (pixels; int with -1 invalid, or float with NaN invalid) ->
     (H, W) float64 disparity ``x - column`` in pixels, NaN where invalid."""
     col = _check_column(column)
-    x = np.arange(col.shape[1], dtype=np.float64)[None, :]
-    d = x - col.astype(np.float64)
+    d = triangulation.disparity(col)
     if np.issubdtype(col.dtype, np.integer):
         d[col < 0] = np.nan
     return d
@@ -62,16 +59,10 @@ def disparity_to_depth_mm(disparity: np.ndarray, geometry: DepthGeometry) -> np.
     Invalid: NaN disparity, ``d + doffs <= 0`` (behind the sensor / at infinity), or a depth that
     rounds to 0 or exceeds 65535 mm.
     """
-    d = np.asarray(disparity, dtype=np.float64)
     doffs = float(geometry.cx_projector) - float(geometry.cx_camera)
-    fb_mm = float(geometry.focal_px) * float(geometry.baseline_m) * 1000.0
-    if not fb_mm > 0:
-        raise ValueError(f"focal_px * baseline_m must be positive, got {fb_mm / 1000.0}")
-    denom = d + doffs
-    ok = np.isfinite(denom) & (denom > 0)
-    z = np.zeros(d.shape, dtype=np.float64)
-    np.divide(fb_mm, denom, out=z, where=ok)
-    z = np.rint(z)
+    z = triangulation.depth_from_disparity(disparity, geometry.focal_px, geometry.baseline_m, doffs, scale=1000.0)
+    ok = np.isfinite(z)
+    z = np.rint(np.where(ok, z, 0.0))
     ok &= (z >= 1) & (z <= 65535)
     return np.where(ok, z, 0).astype(np.uint16)
 

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import triangulation
+
 #: Depth range (metres) the default scenes are built to stay within.
 DEPTH_RANGE_M = (0.4, 2.0)
 
@@ -58,24 +60,27 @@ class Geometry:
         params.update(overrides)
         return cls(**params)  # type: ignore[arg-type]
 
+    @classmethod
+    def projector_as_wide(cls, width: int, height: int) -> "Geometry":
+        """The light-source scenarios' pair (`edge.source`): a projector as wide as the ``width`` x
+        ``height`` camera, both principal points at the centre, focal 300 px per 320 columns."""
+        return cls.default(width, height, focal_px=300.0 * width / 320.0, cx_projector=width / 2.0,
+                           projector_width=width)
+
     @property
     def doffs(self) -> float:
         """``cx_projector - cx_camera`` (pixels)."""
         return float(self.cx_projector - self.cx_camera)
 
     def depth_from_disparity(self, disparity: np.ndarray) -> np.ndarray:
-        """Depth in metres (float32, NaN where ``d + doffs <= 0`` or d is NaN)."""
-        d = np.asarray(disparity, dtype=np.float64) + self.doffs
-        with np.errstate(divide="ignore", invalid="ignore"):
-            z = np.where(d > 0, self.focal_px * self.baseline_m / d, np.nan)
-        return z.astype(np.float32)
+        """Depth in metres (float32, NaN where ``d + doffs <= 0`` or d is NaN; `edge.triangulation`)."""
+        return triangulation.depth_from_disparity(disparity, self.focal_px, self.baseline_m,
+                                                  self.doffs).astype(np.float32)
 
     def disparity_from_depth(self, depth_m: np.ndarray) -> np.ndarray:
-        """Disparity in pixels (float32) of depth ``Z`` metres: ``f*B/Z - doffs``."""
+        """Disparity in pixels (float32) of depth ``Z`` metres: ``f*B/Z - doffs`` (`edge.triangulation`)."""
         z = np.asarray(depth_m, dtype=np.float64)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            d = self.focal_px * self.baseline_m / z - self.doffs
-        return d.astype(np.float32)
+        return triangulation.disparity_from_depth(z, self.focal_px, self.baseline_m, self.doffs).astype(np.float32)
 
     def disparity_band(self, near_m: float = DEPTH_RANGE_M[0], far_m: float = DEPTH_RANGE_M[1]) -> tuple[int, int]:
         """Integer ``(min_disparity, max_disparity)`` covering depths ``near_m..far_m``."""

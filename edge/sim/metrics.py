@@ -11,6 +11,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .. import triangulation
+
 from .scene import Scene
 
 THRESHOLDS = (0, 1, 2)
@@ -67,6 +69,12 @@ def truth(scene: Scene, *, stripe: int = 1, code_size: int | None = None) -> tup
     return gt, valid
 
 
+def truth_columns(scene: Scene, stripe: int = 1) -> np.ndarray:
+    """(H, W) int32 true codeword index (`truth`), -1 where it is not GT-valid (projector does not reach)."""
+    gt, valid = truth(scene, stripe=stripe)
+    return np.where(valid, gt, -1).astype(np.int32)
+
+
 def error_map(decoded_column: np.ndarray, scene: Scene, *, threshold: int = 0, stripe: int = 1) -> np.ndarray:
     """(H, W) bool: GT-valid pixels whose decoded column is invalid or off by more than ``threshold``."""
     col = _check(decoded_column, scene, threshold, stripe)
@@ -83,11 +91,8 @@ def error_rate(decoded_column: np.ndarray, scene: Scene, *, threshold: int = 0, 
 
 def depth_from_columns(decoded_column: np.ndarray, scene: Scene, *, stripe: int = 1) -> np.ndarray:
     """Depth in metres (float32, NaN where invalid) from decoded codewords (stripe centre)."""
-    col = np.asarray(decoded_column).astype(np.float64)
-    h, w = col.shape
-    projector_col = (col + 0.5) * stripe - 0.5
-    disparity = np.arange(w, dtype=np.float64)[None, :] - projector_col
-    z = scene.geometry.depth_from_disparity(disparity)
+    col = np.asarray(decoded_column)
+    z = scene.geometry.depth_from_disparity(triangulation.disparity(triangulation.stripe_centre(col, stripe)))
     return np.where(col >= 0, z, np.nan).astype(np.float32)
 
 

@@ -10,6 +10,9 @@ that camera 1's column also sees: a false curtain at another depth.  With source
 L slots, every laser sends its code, and camera 1 keeps a pixel only when its L slot values pass the
 matched filter (`edge.source.matched_filter.despread`) for its own code.
 
+Pure functions here: `curtain_slots` (the slot frames), `curtain_detect` (the detection) and
+`curtain_truth` (the ground truth); the scenario runner is `edge.eval.curtain.run_curtain`.
+
 Model: camera-1 pixel intensity in a slot = albedo * (sum over lasers on in that slot, time-averaged
 over the slot, of power * exp(-(col_k(y, x) - laser column)^2 / (2 w^2)) + ambient) + Gaussian noise
 (read ``sigma_r`` and shot ``sigma_s``).  The own laser's column map is the scene's ground truth
@@ -23,7 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..codes.source import source_code
-from ..sim import Geometry, Scene, make_scene
+from ..sim import Geometry, Scene
+from ..triangulation import disparity_from_depth
 from .matched_filter import DEFAULT_THRESHOLD, despread
 
 
@@ -59,9 +63,7 @@ class CurtainConfig:
     subsamples: int = 4
 
     def geometry(self) -> Geometry:
-        f = 300.0 * self.width / 320.0
-        return Geometry.default(self.width, self.height, focal_px=f, cx_projector=self.width / 2.0,
-                                projector_width=self.width)
+        return Geometry.projector_as_wide(self.width, self.height)
 
 
 def _uncoded(code: str) -> bool:
@@ -83,9 +85,9 @@ def curtain_slots(scene: Scene, devices: list[CurtainDevice], cfg: CurtainConfig
     g = scene.geometry
     h, w = scene.shape
     cols = [scene.column.astype(np.float64)]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for dev in devices[1:]:
-            cols.append(np.arange(w)[None, :] - (g.focal_px * dev.baseline_m / scene.depth_m.astype(np.float64) - g.doffs))
+    for dev in devices[1:]:
+        z = scene.depth_m.astype(np.float64)
+        cols.append(np.arange(w)[None, :] - disparity_from_depth(z, g.focal_px, dev.baseline_m, g.doffs))
     out = np.zeros((slots, h, w), np.float64)
     sub = (np.arange(cfg.subsamples) + 0.5) / cfg.subsamples
     x = np.arange(w)
@@ -110,62 +112,28 @@ def curtain_slots(scene: Scene, devices: list[CurtainDevice], cfg: CurtainConfig
     return (inten + noise).astype(np.float32)
 
 
-@dataclass(frozen=True)
-class CurtainResult:
-    """detected: bool (H, steps) curtain image; truth: bool (H, steps) own-curtain ground truth;
-    amplitude: float32 (H, steps) intensity (uncoded) or de-spread amplitude (coded)."""
+def curtain_detect(slots: np.ndarray, code: str, albedo: np.ndarray, cfg: CurtainConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Camera-1 detection of its own curtain: (amplitude float32 (H, steps), detected bool (H, steps)).
 
-    detected: np.ndarray
-    truth: np.ndarray
-    amplitude: np.ndarray
-    codes: tuple[str, ...]
-
-    def rates(self) -> dict:
-        neg = ~self.truth
-        fp = int((self.detected & neg).sum())
-        fn = int((~self.detected & self.truth).sum())
-        return {
-            "false_detections": fp, "false_detection_rate": fp / max(1, int(neg.sum())),
-            "missed_detections": fn, "missed_detection_rate": fn / max(1, int(self.truth.sum())),
-            "detections": int(self.detected.sum()), "truth": int(self.truth.sum()),
-        }
-
-
-def run_curtain(cfg: CurtainConfig, codes: tuple[str, ...] = ("1", "1"), *, phase_slots: float | tuple = 0.0,
-                seed: int = 0) -> CurtainResult:
-    """Device 1 scans the curtain at ``curtain_depth_m``; devices 2.. are placed so that device 2's
-    laser forms a false curtain at ``false_depth_m`` in camera 1 (further devices: further out).
-
-    codes: one per device (``"1"`` = uncoded).  All coded devices must share one length L.
-    phase_slots: clock offset of devices 2.. against device 1 (camera-1 slots), one value or one per device.
+    slots: (L, H, steps) slot frames of `curtain_slots`; code: the own laser's code (``"1"`` =
+    uncoded).  Uncoded: the first slot minus the known ambient ``albedo * cfg.ambient`` (a
+    laser-off frame) must reach ``cfg.detect_level``; coded: the matched filter (`despread`,
+    ``cfg.threshold``, amplitude at least ``cfg.detect_level``) for ``code``.
     """
-    if len(codes) < 1:
-        raise ValueError("need at least one device code")
-    lengths = {len(c) for c in codes}
-    if len(lengths) != 1:
-        raise ValueError(f"all curtain devices must use codes of one length, got {codes}")
-    L = lengths.pop()
-    g = cfg.geometry()
-    scene = make_scene(cfg.scene, cfg.width, cfg.height, seed=cfg.seed, geometry=g)
-    d0 = g.focal_px * g.baseline_m / cfg.curtain_depth_m - g.doffs
-    phases = (phase_slots,) * (len(codes) - 1) if np.isscalar(phase_slots) else tuple(phase_slots)
-    devices = [CurtainDevice(codes[0], g.baseline_m, d0, 0.0)]
-    for i, c in enumerate(codes[1:]):
-        b = cfg.second_baseline_m * (1 + 0.5 * i)
-        off = g.focal_px * b / cfg.false_depth_m - g.doffs
-        devices.append(CurtainDevice(c, b, off, float(phases[i]) * 1.0))
-    rng = np.random.default_rng(seed)
-    slots = curtain_slots(scene, devices, cfg, rng=rng, slots=L)
-    # ground truth: own laser alone, noise-free, would pass the detection level
-    x = np.arange(cfg.width)
+    if _uncoded(code):
+        amp = slots[0] - albedo * cfg.ambient  # ambient known per pixel (a laser-off frame)
+        detected = amp >= cfg.detect_level
+    else:
+        ds = despread(slots, code, threshold=cfg.threshold, min_amplitude=cfg.detect_level)
+        amp, detected = ds.frames[0], ds.accepted[0]
+    return amp.astype(np.float32), detected
+
+
+def curtain_truth(scene: Scene, d0: float, cfg: CurtainConfig) -> np.ndarray:
+    """(H, steps) bool: pixels where the own laser alone, noise-free, reaches ``cfg.detect_level``
+    on the curtain of disparity ``d0`` (the ground truth of a scan)."""
+    x = np.arange(scene.shape[1])
     u = scene.column.astype(np.float64) - (x - d0)[None, :]
     with np.errstate(invalid="ignore"):
         own = np.nan_to_num(np.exp(-0.5 * (u / cfg.line_width_px) ** 2)) * scene.albedo
-    truth = own >= cfg.detect_level
-    if _uncoded(codes[0]):
-        amp = slots[0] - scene.albedo * cfg.ambient  # ambient known per pixel (a laser-off frame)
-        detected = amp >= cfg.detect_level
-    else:
-        ds = despread(slots, codes[0], threshold=cfg.threshold, min_amplitude=cfg.detect_level)
-        amp, detected = ds.frames[0], ds.accepted[0]
-    return CurtainResult(detected, truth, amp.astype(np.float32), tuple(codes))
+    return own >= cfg.detect_level

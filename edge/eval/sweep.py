@@ -1,8 +1,10 @@
 """The evaluation sweep that reproduces the paper's simulation curves (section 3.2.5, appendices B-D).
 
-`run_sweep` renders `flying` scenes with `capture_code`, decodes every capture with a decoder
-function, and collects error rates; `write_report` turns the rows into PNG plots, a markdown
-table and a verdict on each of the paper's claims.
+`run_sweep` renders `flying` scenes with `edge.sim.capture_code`, decodes every capture with a
+decoder function, and collects error rates; `write_report` turns the rows into PNG plots, a
+markdown table and a verdict on each of the paper's claims.  Every point decodes with a
+`DecodeSettings` (`point_settings`), the object a profile's ``[decoder]`` / ``[camera]``
+sections give (`edge.eval.report.profile_sections` writes it as one).
 
 Experiments (names used in rows and file names):
 
@@ -15,8 +17,9 @@ Experiments (names used in rows and file names):
   binary Gray of similar resolution (729 columns stripe 1, 512 columns stripe 2).
 - ``levels``: where the decoder's on/off levels come from, for gray-10, ecc-22-10, ecc-63-10
   (sigma_s = 0.04): the single calibration frames at exposure T/n as captured
-  (``calibration``), refitted from the code frames (``refined``, `edge.decode.levels`), or
-  noise-free calibration frames (``oracle``, a bound).
+  (``calibration``), refitted from the code frames (``refined``: ``levels="refit"``,
+  `edge.decode.levels`), or noise-free calibration frames (``oracle``, a bound: decoded with
+  ``levels="calibration"``).
 - ``bits8``: soft_quant's codes at sigma_s = 0.015 with an 8-bit camera (quantisation).
 
 Camera: 12 bits by default (`SweepConfig.bits`): the paper's regime is shot-noise dominated and
@@ -24,21 +27,26 @@ its real camera is a 12-bit Basler; at 8 bits the quantisation step (1/255, sigm
 comparable to the shot noise of the dim T/63 frames of ecc-63-10 and to the read noise, which
 the ``bits8`` experiment shows.  12 and 16 bits give the same error rates within 0.1-0.5 points.
 
-Levels: `SweepConfig.levels` (default ``"refined"``) for every experiment but ``levels``.
+Levels: `SweepConfig.levels` (default ``"refined"``) for every experiment but ``levels``.  The
+sweep's level sources map onto `DecodeSettings.levels` by `SETTINGS_LEVELS` (``refined`` ->
+``"refit"``); rows and reports keep the sweep's names.
+
+Decoder settings of a point (`point_settings`): its method and levels, the camera's noise
+(sigma_r, sigma_s, each at least 1e-4) and ``min_contrast = min_confidence = 0`` (the paper's
+error rate counts every pixel: decode all of them, reject none); the other fields are
+`DEFAULT_SETTINGS`.
 
 Every row also holds the error rate per albedo band (`BANDS`).
 
-A decoder function has the signature ``decoder(capture, code, method, band, levels) ->
-(column, valid)`` with ``band = (min_disparity, max_disparity)`` and ``levels`` one of
-``"calibration"``, ``"refined"`` (the capture's white/black are used either way; for
-``"oracle"`` the sweep passes noise-free calibration frames and ``"calibration"``);
-`edge_decoder` wraps `edge.decode.decode` / `edge.decode.levels.decode_refined`.  A decoder
-with a ``methods`` attribute only gets points whose method is in it.
+A decoder function has the signature ``decoder(capture, code, settings, band) ->
+(column, valid)`` with ``settings`` a `DecodeSettings` and ``band = (min_disparity,
+max_disparity)`` (for ``"oracle"`` the sweep passes noise-free calibration frames in the
+capture); `edge_decoder` is `edge.decode.decode` with those settings.  A decoder with a
+``methods`` attribute only gets points whose ``settings.method`` is in it.
 """
 
 from __future__ import annotations
 
-import inspect
 import json
 import time
 import zlib
@@ -49,13 +57,16 @@ from typing import Any, Callable, Iterable
 import numpy as np
 
 from ..codes import Code, get_code
-from .camera import CameraModel
-from .metrics import evaluate
-from .render import Capture, capture, capture_code
-from .scene import Scene
-from .scenes import make_scene
+from ..decode import decode
+from ..decode.settings import DEFAULT_SETTINGS, DecodeSettings
+from ..sim.camera import CameraModel
+from ..sim.metrics import error_map, evaluate, truth
+from ..sim.render import Capture, capture, capture_code
+from ..sim.scene import Scene
+from ..sim.scenes import make_scene
+from .report import markdown_table, pyplot, save_figure
 
-Decoder = Callable[[Capture, Code, str, tuple[int, int], str], tuple[np.ndarray, np.ndarray]]
+Decoder = Callable[[Capture, Code, DecodeSettings, tuple[int, int]], tuple[np.ndarray, np.ndarray]]
 
 #: How `edge_decoder` is described in reports.
 DECODER_NAME = "edge.decode.decode (levels=refined: edge.decode.levels.decode_refined)"
@@ -79,6 +90,8 @@ def read_findings(out_dir: Path) -> str:
 #: Albedo bands of the per-band breakdown: (label, low, high), low <= albedo < high.
 BANDS = (("albedo < 0.3", 0.0, 0.3), ("0.3-0.6", 0.3, 0.6), ("> 0.6", 0.6, np.inf))
 LEVELS = ("calibration", "refined", "oracle")
+#: `DecodeSettings.levels` of each level source of the sweep (oracle: noise-free white / black, used as given).
+SETTINGS_LEVELS = {"calibration": "calibration", "refined": "refit", "oracle": "calibration"}
 EXPERIMENTS = ("soft_quant", "decode_quant", "read_noise", "arrangement", "nary", "levels", "bits8")
 
 #: Total signal (projector + ambient) on a white surface in a frame of exposure 1 for the
@@ -130,33 +143,20 @@ def reorder(code: Code, order: str) -> Code:
                 order=order)
 
 
+def point_settings(method: str, levels: str, camera: CameraModel) -> DecodeSettings:
+    """The `DecodeSettings` of a sweep point: ``method``, the sweep level source ``levels``
+    (`SETTINGS_LEVELS`), the camera's noise (floored at 1e-4), no rejection."""
+    return DEFAULT_SETTINGS.replace(method=method, levels=SETTINGS_LEVELS[levels],
+                                    sigma_r=max(float(camera.sigma_r), 1e-4), sigma_s=max(float(camera.sigma_s), 1e-4),
+                                    min_contrast=0.0, min_confidence=0.0)
+
+
 def edge_decoder() -> Decoder:
-    """Decoder function backed by `edge.decode.decode` (ImportError if it is not available)."""
-    from ..decode import decode  # noqa: PLC0415 - optional peer module
-    from ..decode.levels import decode_refined  # noqa: PLC0415
-    from ..decode.settings import FIELDS  # noqa: PLC0415
+    """Decoder function backed by `edge.decode.decode` with the point's `DecodeSettings`."""
 
-    params = set(inspect.signature(decode).parameters) | set(FIELDS)
-
-    def run(cap: Capture, code: Code, method: str, band: tuple[int, int],
-            levels: str = "calibration") -> tuple[np.ndarray, np.ndarray]:
-        if levels not in ("calibration", "refined"):
-            raise ValueError(f"levels: expected 'calibration' or 'refined', got {levels!r}")
-        kwargs: dict[str, Any] = {"method": method, "min_disparity": band[0], "max_disparity": band[1]}
-        if "stripe" in params:
-            kwargs["stripe"] = cap.stripe
-        if "bit_depth" in params and cap.bits != 8:
-            kwargs["bit_depth"] = cap.bits
-        # the paper's error rate counts every pixel: decode all of them, reject none
-        for name, value in (("min_contrast", 0.0), ("min_confidence", 0.0)):
-            if name in params:
-                kwargs[name] = value
-        if cap.camera is not None:
-            for name in ("sigma_r", "sigma_s"):
-                if name in params:
-                    kwargs[name] = max(getattr(cap.camera, name), 1e-4)
-        fn = decode_refined if levels == "refined" else decode
-        out = fn(cap.frames, cap.white, cap.black, code, **kwargs)
+    def run(cap: Capture, code: Code, settings: DecodeSettings, band: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        out = decode(cap.frames, cap.white, cap.black, code, settings=settings, min_disparity=band[0],
+                     max_disparity=band[1], stripe=cap.stripe, bit_depth=cap.bits if cap.bits != 8 else None)
         return np.asarray(out.column), np.asarray(out.valid)
 
     return run
@@ -192,6 +192,7 @@ def _points(cfg: SweepConfig) -> list[tuple[str, str, float, dict[str, Any]]]:
     def add(exp: str, series: str, x: float, **job: Any) -> None:
         job.setdefault("method", "soft")
         job.setdefault("levels", cfg.levels)
+        job["settings"] = point_settings(job["method"], job["levels"], job["camera"])
         pts.append((exp, series, x, job))
 
     for exp in cfg.experiments:
@@ -238,6 +239,11 @@ def _points(cfg: SweepConfig) -> list[tuple[str, str, float, dict[str, Any]]]:
     return pts
 
 
+def configurations(cfg: SweepConfig) -> list[DecodeSettings]:
+    """Every distinct `DecodeSettings` the sweep ``cfg`` decodes with (first-use order)."""
+    return list(dict.fromkeys(job["settings"] for *_, job in _points(cfg)))
+
+
 def oracle_calibration(scene: Scene, camera: CameraModel, exposure: float) -> tuple[np.ndarray, np.ndarray]:
     """Noise-free (still quantised) white and black frames of ``scene`` at ``exposure``."""
     wp = int(scene.geometry.projector_width)
@@ -248,8 +254,6 @@ def oracle_calibration(scene: Scene, camera: CameraModel, exposure: float) -> tu
 
 def band_errors(column: np.ndarray, scene: Scene, stripe: int = 1) -> tuple[list[int], list[int]]:
     """(errors, pixels) per albedo band of `BANDS` (exact-column errors, undecoded = error)."""
-    from .metrics import error_map, truth
-
     err = error_map(np.asarray(column).astype(np.int32), scene, stripe=stripe)
     _, gt_valid = truth(scene, stripe=stripe)
     errs, npx = [], []
@@ -270,7 +274,7 @@ def run_sweep(cfg: SweepConfig, decoder: Decoder, *, progress: bool = True) -> l
     codes: dict[tuple[str, str], Code] = {}
     supported = getattr(decoder, "methods", None)
     if supported is not None:
-        points = [p for p in points if p[3]["method"] in supported]
+        points = [p for p in points if p[3]["settings"].method in supported]
     bar = tqdm(total=len(points) * len(scenes), desc="eval sweep", unit="capture", disable=not progress)
     for i, (exp, series, x, job) in enumerate(points):
         key = (job["code"], job.get("order", ""))
@@ -288,12 +292,10 @@ def run_sweep(cfg: SweepConfig, decoder: Decoder, *, progress: bool = True) -> l
             rng = np.random.default_rng([cfg.seeds[j], noise_key])
             stripe = job.get("stripe", 1)
             cap = capture_code(scene, code, job["camera"], rng=rng, stripe=stripe)
-            levels = job["levels"]
-            if levels == "oracle":
+            if job["levels"] == "oracle":
                 white, black = oracle_calibration(scene, job["camera"], cap.exposure)
                 cap = replace(cap, white=white, black=black)
-                levels = "calibration"
-            column, valid = decoder(cap, code, job["method"], scene.disparity_band(margin=4), levels)
+            column, valid = decoder(cap, code, job["settings"], scene.disparity_band(margin=4))
             m = evaluate(np.asarray(column).astype(np.int32), scene, valid=valid, stripe=stripe)
             be, bp = band_errors(column, scene, stripe)
             b_err += be
@@ -483,11 +485,7 @@ _TITLES = {
 
 
 def plot(rows: list[Row], experiment: str, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     series = _series(rows, experiment)
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     for name, pts in series.items():
@@ -503,16 +501,13 @@ def plot(rows: list[Row], experiment: str, path: Path) -> None:
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def _table(xs: list[float], named: Iterable[tuple[str, dict[float, float]]]) -> list[str]:
-    lines = ["| series | " + " | ".join(f"{x:g}" for x in xs) + " |", "|---|" + "---|" * len(xs)]
-    for name, d in named:
-        lines.append(f"| {name} | " + " | ".join(
-            (f"{100 * d[x]:.1f}" if np.isfinite(d[x]) else "-") if x in d else "" for x in xs) + " |")
-    return lines
+    return markdown_table(["series", *(f"{x:g}" for x in xs)], (
+        [name, *((f"{100 * d[x]:.1f}" if np.isfinite(d[x]) else "-") if x in d else "" for x in xs)]
+        for name, d in named))
 
 
 def write_report(rows: list[Row], out_dir: Path, cfg: SweepConfig, *, command: str, decoder_name: str,
