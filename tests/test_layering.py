@@ -6,6 +6,7 @@ including the lazy ones inside functions; ``importlib`` look-ups by name, such a
 registry `edge.device.PIPELINES`, are data and not counted)::
 
     edge (the package root: __version__ only)
+    triangulation  edge/triangulation.py: disparity <-> depth (numpy only)
     codes      code values, CRC, source codes
     capture    the coded-capture type (frames, white, black, exposure, bit depth)
     patterns   projector frames from a code
@@ -38,6 +39,7 @@ ROOT = Path(__file__).resolve().parents[1] / "edge"
 #: (layer, packages / top-level modules of edge/ in it), lowest first
 LAYERS: list[tuple[str, ...]] = [
     ("",),  # edge/__init__.py
+    ("triangulation",),  # edge/triangulation.py: the depth formula (numpy only)
     ("codes",),
     ("capture",),
     ("patterns",),
@@ -56,14 +58,7 @@ LAYERS: list[tuple[str, ...]] = [
 RANK = {name: i for i, layer in enumerate(LAYERS) for name in layer}
 
 #: Imports that point up the pipeline today: (importing module, imported package).  To be emptied.
-KNOWN_VIOLATIONS: set[tuple[str, str]] = {
-    # issue 10 item 4 (engineer 10d): the evaluation sweep moves out of edge.sim into edge.eval
-    ("edge.sim.sweep", "decode"),
-    # engineer 10a: the replay backend reads MCAP (edge.io.mcap, edge.io.event_record); the fix is to
-    # move it to edge.io and the backend factory above edge.io, which moves the public (README)
-    # entry point `edge.sensors.open_sensor`: left for a decision
-    ("edge.sensors.replay", "io"),
-}
+KNOWN_VIOLATIONS: set[tuple[str, str]] = set()
 
 
 def _module_name(path: Path) -> str:

@@ -6,6 +6,8 @@ timestamp_ns, exposure_us, projector_frame, stack); `open_sensor` builds one fro
 
 from __future__ import annotations
 
+import importlib
+
 from typing import Any
 
 from .base import (BLACK, WHITE, EndOfStream, EventSlice, Frame, MaskedCapture, ProjectorFrame, Sensor, SensorInfo,
@@ -54,8 +56,9 @@ def open_sensor(profile, backend: str | None = None, *, replay_path: str | None 
         return SimSensor(profile, stacks=stacks, max_speed=max_speed, poses=poses, first_stack=first_stack,
                          room=room)
     if backend == "replay":
-        from .replay import ReplaySensor
-
+        # the replay backend reads MCAP, so it lives with the recordings in edge.io (above the
+        # sensors); the factory names it, as the pipeline registry names its classes
+        ReplaySensor = importlib.import_module("edge.io.replay_sensor").ReplaySensor
         path = replay_path or profile.sensor.replay_path
         if not path:
             raise ValueError("the replay sensor needs a recording: expected --replay FILE or sensor.replay_path, got none")

@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from .base import EndOfStream, Frame, SensorInfo, parse_projector_frame
+from edge.sensors.base import EndOfStream, Frame, SensorInfo, parse_projector_frame
 
 
 class ReplaySensor:
@@ -26,7 +26,7 @@ class ReplaySensor:
 
     def __init__(self, path: str | os.PathLike[str], *, profile=None, max_speed: bool = False) -> None:
         from edge.device import DeviceModel
-        from edge.io.mcap import RecordingReader
+        from .mcap import RecordingReader
 
         self.path = os.fspath(path)
         self.reader = RecordingReader(self.path, expected_profile=profile, strict=False)
