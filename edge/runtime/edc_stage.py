@@ -86,13 +86,15 @@ def _stacked(images: list) -> np.ndarray:
     return np.stack(images)
 
 
-def make_scan(pipeline: Any, height: int):
-    """The `AdaptiveScan` of a pipeline's profile (calibrated binarisation, the disparity band)."""
+def make_scan(pipeline: Any, height: int, *, rounds: int | None = None):
+    """The `AdaptiveScan` of a pipeline's profile (calibrated binarisation, the disparity band);
+    rounds: scan rounds at most (default 1 + ``edc.rounds``)."""
     from edge.edc import AdaptiveScan
 
     p = pipeline.profile
     return AdaptiveScan(pipeline.code, p.projector.width, height, stripe=pipeline.stripe,
-                        max_rounds=1 + int(p.edc.rounds), binarisation="calibrated",
+                        max_rounds=1 + int(p.edc.rounds) if rounds is None else rounds,
+                        binarisation="calibrated",
                         min_contrast=min(p.decoder.min_contrast, 0.999),
                         noise=(p.camera.sigma_r, p.camera.sigma_s),
                         full_scale=pipeline.full_scale,
@@ -101,32 +103,33 @@ def make_scan(pipeline: Any, height: int):
 
 def run_adaptive(pipeline: Any, stack: Any, images: np.ndarray, column: np.ndarray, confidence: np.ndarray,
                  masked_capture: Any) -> EdcOutcome:
-    """EDC rounds on one stack.
+    """EDC rounds on one stack, by the scan's one driver `edge.edc.AdaptiveScan.run`.
 
     images: (n + 2, H, W) the stack's code frames, white, black (one array, no copy made);
     column / confidence: (H, W) the soft decoder's column (-1 invalid) and confidence.
+    masked_capture: `MaskedCaptureFn` for rounds 2.. (None: round 1, the check of the stack, only).
     """
     n = pipeline.code.n
     h = images.shape[1]
-    scan = make_scan(pipeline, h)
-    scan.start()
-    first = scan.update(images[: n + 2], guess=column)
-    round_ms, capture_ms, open_px = [first.decode_s * 1e3], [], [first.failing]
+    scan = make_scan(pipeline, h, rounds=1 if masked_capture is None else None)
+    capture_ms: list[float] = []
     extra: list = []
-    edc_round = 1
-    while masked_capture is not None:
-        frames = scan.next_frames()
-        if frames is None:
-            break
+    edc_round = 0
+
+    def capture(frames: np.ndarray) -> np.ndarray:
+        nonlocal edc_round
+        edc_round += 1
+        if edc_round == 1:  # round 1 decodes the stack already captured
+            return images[: n + 2]
         t0 = time.perf_counter()
-        captured = masked_capture(stack.stack, edc_round, frames)
+        captured = masked_capture(stack.stack, edc_round - 1, frames)
         capture_ms.append((time.perf_counter() - t0) * 1e3)
         extra.extend(captured)
-        r = scan.update(_stacked([f.image for f in captured]))
-        round_ms.append(r.decode_s * 1e3)
-        open_px.append(r.failing)
-        edc_round += 1
-    result = scan.result()
+        return _stacked([f.image for f in captured])
+
+    result = scan.run(capture, guess=column)
+    round_ms = [r.decode_s * 1e3 for r in result.rounds]
+    open_px = [r.failing for r in result.rounds]
     col = np.asarray(result.column, dtype=np.int32)
     verified = np.asarray(result.verified if result.verified is not None else result.round_of > 0, dtype=bool)
     verified &= col >= 0
