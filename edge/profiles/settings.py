@@ -518,8 +518,10 @@ def _check_pipeline(p: Profile, source: str) -> None:
                 f"= {first}..{last} over the camera) meet the projector's columns 0..{p.projector.width - 1}, "
                 f"got min_disparity {d_lo}, max_disparity {d_hi}")
     g = p.geometry
-    scale = g.focal_px * g.baseline_m * 1000.0
-    near, far = scale / (d_hi + g.doffs), scale / (d_lo + g.doffs)   # mm at the band's ends
+    from edge.triangulation import depth_from_disparity
+
+    near, far = (float(depth_from_disparity(d, g.focal_px, g.baseline_m, g.doffs, scale=1000.0))
+                 for d in (d_hi, d_lo))   # mm at the band's ends (d + doffs > 0: checked above)
     lo_mm, hi_mm = DEPTH_RANGE_MM
     if near > hi_mm or far < lo_mm:
         raise ProfileError(

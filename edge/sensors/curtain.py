@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from edge.device import CURTAINS, curtain_disparities, curtain_disparity, full_scale  # noqa: F401  (sweep plan re-exported)
+from edge.triangulation import depth_from_disparity, disparity_from_depth
 
 from .base import SensorInfo, slot_schedule
 from .sim import PacedSensor, sim_geometry
@@ -68,15 +69,16 @@ class CurtainSimSensor(PacedSensor):
             for k, f in enumerate(self.room.foreign()):
                 b = f.baseline_factor * g.baseline_m
                 d_f = curtain_disparity(self.profile, stack + CURTAINS // 2 + k)
-                z_f = g.focal_px * g.baseline_m / (d_f + g.doffs)
-                devices.append(CurtainDevice(f.code, b, g.focal_px * b / z_f - g.doffs,
+                z_f = float(depth_from_disparity(d_f, g.focal_px, g.baseline_m, g.doffs))
+                devices.append(CurtainDevice(f.code, b, disparity_from_depth(z_f, g.focal_px, b, g.doffs),
                                              f.offset_at(t0) % len(f.code), power * f.power))
         if self.interference:
             # a second device at 1.6x the baseline, its laser crossing the scene half a sweep away
             b2 = 1.6 * g.baseline_m
             d_false = curtain_disparity(self.profile, stack + CURTAINS // 2)
-            z_false = g.focal_px * g.baseline_m / (d_false + g.doffs)
-            devices.append(CurtainDevice(INTERFERER_CODE, b2, g.focal_px * b2 / z_false - g.doffs, 0.5, power))
+            z_false = float(depth_from_disparity(d_false, g.focal_px, g.baseline_m, g.doffs))
+            devices.append(CurtainDevice(INTERFERER_CODE, b2, disparity_from_depth(z_false, g.focal_px, b2, g.doffs),
+                                         0.5, power))
         return devices
 
     def _render(self, stack: int, rng: np.random.Generator) -> np.ndarray:

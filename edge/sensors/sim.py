@@ -31,6 +31,8 @@ from collections import OrderedDict
 
 import numpy as np
 
+from edge.triangulation import disparity_from_depth
+
 from .base import BLACK, WHITE, EndOfStream, Frame, SensorInfo, projector_frame_id, stack_schedule
 
 #: seconds of scene time covered by one motion period of the `poses` cycle
@@ -280,8 +282,8 @@ class SimSensor(PacedSensor):
         e = np.zeros((F, h, w), np.float32)
         for f in foreign:
             rows_f = stack_projector_rows(self.code, wp, self.profile.projector.stripe, f.code)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                col = x - (g.focal_px * f.baseline_factor * g.baseline_m / scene.depth_m.astype(np.float64) - g.doffs)
+            col = x - disparity_from_depth(scene.depth_m.astype(np.float64), g.focal_px * f.baseline_factor,
+                                           g.baseline_m, g.doffs)
             ok = np.isfinite(col) & (col >= 0) & (col <= wp - 1)
             ci = np.where(ok, np.rint(np.where(ok, col, 0)), 0).astype(np.int64)
             tau = f.offset_at(t0)
