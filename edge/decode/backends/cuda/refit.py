@@ -1,0 +1,138 @@
+"""Level self-calibration (``levels="refit"``) on the GPU: `edge.decode.levels` per pixel, float32.
+
+Three kernels, each one thread per pixel, each the numpy expression of `levels` with the same
+float32 operations in the same order (numpy reduces an (n, H, W) stack over axis 0 by adding
+whole frames in order, so the per-pixel sums here run i = 0..n-1 too):
+
+* `normalise`: frames, white, black -> float32 ``raw.astype(float32) * float32(scale)``.
+* `initial_levels`: where ``white <= black``, the means of the lower / upper half of the
+  pixel's sorted n + 2 samples (white = max(upper, lower + MIN_CONTRAST)).
+* `refine_levels`: the least-squares on / off levels from the decoded codebook rows.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import cuda
+
+from ...levels import MIN_CONTRAST
+from .cost import mul32
+
+TPB = 128
+_MINC = np.float32(MIN_CONTRAST)
+#: Largest n + 2 of `initial_levels`' per-pixel sample sort (local memory).
+MAX_SAMPLES = 66
+
+
+@cuda.jit
+def normalise(frames, white, black, scale, out_f, out_w, out_b):
+    """out_* (float32) = raw.astype(float32) * scale (scale float32)."""
+    n = frames.shape[0]
+    height = frames.shape[1]
+    width = frames.shape[2]
+    p = cuda.grid(1)
+    if p >= height * width:
+        return
+    yy = p // width
+    xx = p - yy * width
+    for i in range(n):
+        out_f[i, yy, xx] = mul32(np.float32(frames[i, yy, xx]), scale)
+    out_w[yy, xx] = mul32(np.float32(white[yy, xx]), scale)
+    out_b[yy, xx] = mul32(np.float32(black[yy, xx]), scale)
+
+
+@cuda.jit
+def initial_levels(f, w, b):
+    """In place: where not w > b, w, b = max(hi, lo + MIN_CONTRAST), lo (`levels.initial_levels`)."""
+    s = cuda.local.array(MAX_SAMPLES, np.float32)
+    n = f.shape[0]
+    height = f.shape[1]
+    width = f.shape[2]
+    p = cuda.grid(1)
+    if p >= height * width:
+        return
+    yy = p // width
+    xx = p - yy * width
+    if w[yy, xx] > b[yy, xx]:
+        return
+    m = n + 2
+    for i in range(n):
+        s[i] = f[i, yy, xx]
+    s[n] = w[yy, xx]
+    s[n + 1] = b[yy, xx]
+    for i in range(1, m):  # insertion sort (values only: the order of equal samples is moot)
+        t = s[i]
+        j = i - 1
+        while j >= 0 and s[j] > t:
+            s[j + 1] = s[j]
+            j -= 1
+        s[j + 1] = t
+    half = m // 2
+    lo = s[0]
+    for i in range(1, half):
+        lo = lo + s[i]
+    hi = s[m - half]
+    for i in range(m - half + 1, m):
+        hi = hi + s[i]
+    lo = lo / np.float32(half)
+    hi = hi / np.float32(half)
+    w[yy, xx] = max(hi, lo + _MINC)
+    b[yy, xx] = lo
+
+
+@cuda.jit
+def refine_levels(f, w, b, xtab, sx_tab, sxx_tab, column, out_w, out_b):
+    """`levels.refine_levels`: xtab (size, n) float32 symbols s / (q - 1) of each codebook row,
+    sx_tab / sxx_tab (size,) float32 their sums + 1 and sums of squares + 1 (`refit_tables`);
+    column (H, W) int32 (-1: keep w, b)."""
+    n = f.shape[0]
+    height = f.shape[1]
+    width = f.shape[2]
+    p = cuda.grid(1)
+    if p >= height * width:
+        return
+    yy = p // width
+    xx = p - yy * width
+    c = column[yy, xx]
+    if c < 0:
+        out_w[yy, xx] = w[yy, xx]
+        out_b[yy, xx] = b[yy, xx]
+        return
+    zero = np.float32(0.0)
+    mm = np.float32(n + 2)
+    sr = zero
+    sxr = zero
+    for i in range(n):
+        x = xtab[c, i]
+        r = f[i, yy, xx]
+        if i == 0:
+            sr = r
+            sxr = mul32(x, r)
+        else:
+            sr = sr + r
+            sxr = sxr + mul32(x, r)
+    wv = w[yy, xx]
+    bv = b[yy, xx]
+    sx = sx_tab[c]
+    sxx = sxx_tab[c]
+    sr = (sr + wv) + bv
+    sxr = sxr + wv
+    den = mul32(mm, sxx) - mul32(sx, sx)
+    slope = (mul32(mm, sxr) - mul32(sx, sr)) / den
+    intercept = (sr - mul32(slope, sx)) / mm
+    bb = max(intercept, zero)
+    out_b[yy, xx] = bb
+    out_w[yy, xx] = bb + max(slope, _MINC)
+
+
+def refit_tables(code) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(xtab (size, n), sx_tab (size,), sxx_tab (size,)) float32 for `refine_levels`.
+
+    The sums over a codeword's symbols are taken by the same numpy reduction as
+    `levels.refine_levels` (a reduction over a contiguous axis: numpy's pairwise order), so
+    they are its float32 values exactly; the sums over frames run frame by frame in both."""
+    xt = code.codebook.astype(np.float32) / np.float32(code.q - 1)
+    x = np.moveaxis(xt[None], -1, 0)  # (n, 1, size), the layout refine_levels reduces
+    sx = (x.sum(axis=0) + 1.0)[0]
+    sxx = ((x * x).sum(axis=0) + 1.0)[0]
+    return np.ascontiguousarray(xt), np.ascontiguousarray(sx, np.float32), np.ascontiguousarray(sxx, np.float32)
