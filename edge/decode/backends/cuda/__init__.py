@@ -31,7 +31,7 @@ from ...inputs import Stack  # noqa: E402
 from .cost import SIM  # noqa: E402
 from .device import DeviceStack, hard_device, search_device, upload  # noqa: E402
 
-__all__ = ["SIM", "DeviceStack", "Staging", "decode_whole", "hard", "is_available", "search", "upload"]
+__all__ = ["SIM", "DeviceStack", "Staging", "decode_whole", "hard", "is_available", "search", "staging_for", "upload"]
 
 
 def is_available() -> bool:
@@ -74,8 +74,8 @@ def __getattr__(name: str):
         from .pipeline import decode_whole
 
         return decode_whole
-    if name == "Staging":
-        from .staging import Staging
+    if name in ("Staging", "staging_for"):
+        from . import staging
 
-        return Staging
+        return getattr(staging, name)
     raise AttributeError(name)

@@ -43,12 +43,19 @@ class DeviceStack:
     black: Any
     scale: float
     dtype: np.dtype
-    host_white: np.ndarray
-    host_black: np.ndarray
+    host_white: np.ndarray | None = None
+    host_black: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
         return int(self.frames.shape[1]), int(self.frames.shape[2])
+
+    def host_levels(self) -> tuple[np.ndarray, np.ndarray]:
+        """(white, black) on the host (copied back once where the stack was made on the device)."""
+        if self.host_white is None:
+            self.host_white = self.white.copy_to_host()
+            self.host_black = self.black.copy_to_host()
+        return self.host_white, self.host_black
 
 
 def upload(stack: Stack, stream: Any = 0) -> DeviceStack:
@@ -112,7 +119,7 @@ def log_inputs(ds: DeviceStack, metric: int, sr2: float, ss2: float, stream: Any
                 _LOGTABS.clear()
             tab = _LOGTABS[key] = cuda.to_device(kernels.log_levels(levels, ds.scale, sr2, ss2))
         return LOG_TABLE, tab, plog
-    logs = pixel_logs(ds.host_white, ds.host_black, ds.scale, sr2, ss2)
+    logs = pixel_logs(*ds.host_levels(), ds.scale, sr2, ss2)
     return LOG_PIXEL, ltab, cuda.to_device(logs, stream=stream)
 
 
@@ -147,7 +154,7 @@ def search_device(ds: DeviceStack, code: Code, *, metric: int, sigma_r: float, s
             raise ValueError(f"backend 'cuda': n * q = {n * code.q} exceeds {nary_k.MAX_NQ} for code {code.name!r}")
         logs = _dummy("nlogs", (code.q, 1, 1), np.float64)
         if metric == kernels.METRIC_ML:
-            logs = cuda.to_device(nary_k.nary_logs(ds.host_white, ds.host_black, ds.has_inv, ds.scale,
+            logs = cuda.to_device(nary_k.nary_logs(*ds.host_levels(), ds.has_inv, ds.scale,
                                                    code.q, sr2, ss2), stream=stream)
         nary_k.soft_nary[_blocks(h * w, nary_k.TPB), nary_k.TPB, stream](
             ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, ds.scale, metric, sr2, ss2, q_scale,

@@ -81,10 +81,10 @@ def initial_levels(f, w, b):
 
 
 @cuda.jit
-def refine_levels(f, w, b, xtab, sx_tab, sxx_tab, column, out_w, out_b):
+def refine_levels(f, w, b, xtab, sx_tab, sxx_tab, cand, out_w, out_b):
     """`levels.refine_levels`: xtab (size, n) float32 symbols s / (q - 1) of each codebook row,
     sx_tab / sxx_tab (size,) float32 their sums + 1 and sums of squares + 1 (`refit_tables`);
-    column (H, W) int32 (-1: keep w, b)."""
+    cand (H, W, 3) int32 candidates: the column is cand[..., 0] (-1: keep w, b)."""
     n = f.shape[0]
     height = f.shape[1]
     width = f.shape[2]
@@ -93,7 +93,7 @@ def refine_levels(f, w, b, xtab, sx_tab, sxx_tab, column, out_w, out_b):
         return
     yy = p // width
     xx = p - yy * width
-    c = column[yy, xx]
+    c = cand[yy, xx, 0]
     if c < 0:
         out_w[yy, xx] = w[yy, xx]
         out_b[yy, xx] = b[yy, xx]
