@@ -59,7 +59,7 @@ def _run_checks(*args: str, sim: bool, timeout: int) -> dict[str, dict]:
 
 
 CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inverse",
-          "soft-all-ecc-22-10-float32-normalized-columns", "soft-all-ecc-22-10-float64", "soft-band-ecc-22-10-uint16",
+          "soft-all-ecc-22-10-float32-normalized-columns", "soft-band-ecc-22-10-uint16",
           "soft-band-ecc-22-10-inverse-stripe", "soft-band-gray-10-bitdepth-normalized", "soft-all-restricted-to-band",
           "soft-nary3-6", "hard-metric-search-gray-10", "hard-ecc-22-10", "hard-ecc-22-10-inverse-band", "hard-gray-10",
           "validity", "refit-kernels-ecc-22-10", "refit-kernels-rs16-15-4", "decode-soft", "decode-hard",

@@ -6,7 +6,8 @@ whole frames in order, so the per-pixel sums here run i = 0..n-1 too):
 
 * `normalise`: frames, white, black -> float32 ``raw.astype(float32) * float32(scale)``.
 * `initial_levels`: where ``white <= black``, the means of the lower / upper half of the
-  pixel's sorted n + 2 samples (white = max(upper, lower + MIN_CONTRAST)).
+  pixel's sorted n + 2 samples (white = max(upper, lower + MIN_CONTRAST)); numpy reduces that
+  (samples, pixels) array along its contiguous axis, so the means use its pairwise order.
 * `refine_levels`: the least-squares on / off levels from the decoded codebook rows.
 """
 
@@ -41,6 +42,41 @@ def normalise(frames, white, black, scale, out_f, out_w, out_b):
     out_b[yy, xx] = mul32(np.float32(black[yy, xx]), scale)
 
 
+@cuda.jit(device=True)
+def _pairwise_sum(s, start, count):
+    """float32 sum of s[start:start + count] in numpy's pairwise order (count <= 128: one block of
+    eight accumulators), the order of `levels.initial_levels`' means (a contiguous reduction)."""
+    if count < 8:
+        res = np.float32(0.0)
+        for i in range(count):
+            res = res + s[start + i]
+        return res
+    r0 = s[start]
+    r1 = s[start + 1]
+    r2 = s[start + 2]
+    r3 = s[start + 3]
+    r4 = s[start + 4]
+    r5 = s[start + 5]
+    r6 = s[start + 6]
+    r7 = s[start + 7]
+    i = 8
+    while i < count - count % 8:
+        r0 = r0 + s[start + i]
+        r1 = r1 + s[start + i + 1]
+        r2 = r2 + s[start + i + 2]
+        r3 = r3 + s[start + i + 3]
+        r4 = r4 + s[start + i + 4]
+        r5 = r5 + s[start + i + 5]
+        r6 = r6 + s[start + i + 6]
+        r7 = r7 + s[start + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < count:
+        res = res + s[start + i]
+        i += 1
+    return res
+
+
 @cuda.jit
 def initial_levels(f, w, b):
     """In place: where not w > b, w, b = max(hi, lo + MIN_CONTRAST), lo (`levels.initial_levels`)."""
@@ -68,14 +104,8 @@ def initial_levels(f, w, b):
             j -= 1
         s[j + 1] = t
     half = m // 2
-    lo = s[0]
-    for i in range(1, half):
-        lo = lo + s[i]
-    hi = s[m - half]
-    for i in range(m - half + 1, m):
-        hi = hi + s[i]
-    lo = lo / np.float32(half)
-    hi = hi / np.float32(half)
+    lo = _pairwise_sum(s, 0, half) / np.float32(half)
+    hi = _pairwise_sum(s, m - half, half) / np.float32(half)
     w[yy, xx] = max(hi, lo + _MINC)
     b[yy, xx] = lo
 
