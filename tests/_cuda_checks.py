@@ -83,6 +83,11 @@ def check_search(name, code_name, *, h, w, dtype=np.uint8, inverse=False, metric
         if dtype == np.uint16:  # the reference takes uint8 or normalised floats
             arrays = [None if a is None else a.astype(np.float64) * st.scale for a in arrays]
         costs = reference_costs(*arrays[:3], code, inverse=arrays[3], metric=mname)
+        if band[0]:  # candidates outside the pixel's band are not candidates
+            x = np.arange(w)[:, None]
+            c = np.arange(code.size)[None, :]
+            inside = (c >= (x - band[2]) // stripe) & (c <= (x - band[1]) // stripe)
+            costs = np.where(inside[None], costs, 1e30)
         d = Decoded(column=got[0][..., 0], confidence=got[2], valid=got[0][..., 0] >= 0, candidates=got[0],
                     distances=got[1])
         try:

@@ -9,6 +9,7 @@ error and "auto" decodes on the CPU (checked with the module hidden).
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import json
 import logging
@@ -31,6 +32,7 @@ HAVE_NUMBA_CUDA = importlib.util.find_spec("numba_cuda") is not None
 needs_numba_cuda = pytest.mark.skipif(not HAVE_NUMBA_CUDA, reason="numba-cuda is not installed (pip install 'edge[gpu]')")
 
 
+@functools.lru_cache(maxsize=None)
 def _has_gpu() -> bool:
     if not HAVE_NUMBA_CUDA or os.environ.get("NUMBA_ENABLE_CUDASIM") == "1":
         return False
@@ -127,6 +129,7 @@ def test_without_numba_cuda_the_package_imports_and_cuda_is_reported_missing():
     script = r"""
 import sys
 sys.modules["numba_cuda"] = None  # hide numba-cuda: importing it raises ImportError
+import functools
 import importlib.util
 real = importlib.util.find_spec
 importlib.util.find_spec = lambda name, *a: None if name.split(".")[0] == "numba_cuda" else real(name, *a)
