@@ -211,6 +211,26 @@ def check_staging(name, code_name, *, h, w):
     emit(name, ok, "")
 
 
+def check_runtime_pipeline(name):
+    """The runtime's DepthPipeline with ``[decoder] backend = "cuda"`` decodes through `Staging`
+    and returns the CPU pipeline's columns / confidence / valid mask."""
+    from _service_helpers import load_test_profile
+
+    from edge.decode.backends.cuda import staging
+    from edge.runtime.pipeline import DepthPipeline
+
+    cpu_pipe = DepthPipeline(load_test_profile())
+    gpu_pipe = DepthPipeline(load_test_profile(decoder={"backend": "cuda"}))
+    code = cpu_pipe.code
+    h, w = 3, 24
+    cap, white, black = capture(code, h, w, band_center=8, dark=0.05)
+    ref = cpu_pipe.decode(cap.frames, white, black)
+    staging._CACHE.clear()
+    got = gpu_pipe.decode(cap.frames, white, black)
+    ok = all(np.array_equal(getattr(ref, f), getattr(got, f)) for f in FIELDS) and len(staging._CACHE) == 1
+    emit(name, ok, f"code {code.name}, staged {len(staging._CACHE)}, valid {int(ref.valid.sum())}")
+
+
 def main() -> int:
     emit("resolve-auto", resolve("auto") == "cuda" and gpu.is_available(), resolve("auto"))
     s = (600, 700) if FULL else (2, 16)  # all-codeword searches
@@ -253,6 +273,7 @@ def main() -> int:
         ("decode-soft-inverse-nocheck", lambda: check_decode("decode-soft-inverse-nocheck", "gray-10", h=b[0], w=b[1],
                                                              inverse=True, spatial_check=False)),
         ("staging", lambda: check_staging("staging", "ecc-22-10", h=b[0], w=b[1])),
+        ("runtime-pipeline", lambda: check_runtime_pipeline("runtime-pipeline")),
     ]
     only = [a for a in sys.argv[1:] if not a.startswith("--")]
     for name, fn in checks:

@@ -66,7 +66,7 @@ CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inverse"
           "soft-nary3-6", "hard-metric-search-gray-10", "hard-ecc-22-10", "hard-ecc-22-10-inverse-band", "hard-gray-10",
           "validity", "refit-kernels-ecc-22-10", "refit-kernels-rs16-15-4", "decode-soft", "decode-hard",
           "decode-list+median", "decode-soft-refit", "decode-hard-refit-uint16", "decode-soft-inverse-nocheck",
-          "staging"]
+          "staging", "runtime-pipeline"]
 
 
 @pytest.fixture(scope="module")
@@ -169,3 +169,23 @@ def test_profile_backend_reaches_the_decoder():
     with pytest.raises(ValueError, match="backend"):
         DEFAULT_SETTINGS.replace(backend="gpu")
     assert get("cpu").__name__.endswith(".cpu")
+
+
+def test_runtime_pipeline_with_auto_backend_decodes_on_the_cpu_here():
+    """A profile with ``[decoder] backend = "auto"`` decodes in the runtime exactly as "cpu" where
+    there is no CUDA device (the pipeline's staging hook is not taken)."""
+    if os.environ.get("NUMBA_ENABLE_CUDASIM") == "1" or _has_gpu():
+        pytest.skip("a CUDA device (or the simulator) is present")
+    sys.path.insert(0, str(HERE))
+    from _service_helpers import load_test_profile
+
+    from edge.runtime.pipeline import DepthPipeline
+
+    cpu_pipe = DepthPipeline(load_test_profile())
+    auto_pipe = DepthPipeline(load_test_profile(decoder={"backend": "auto"}))
+    code = cpu_pipe.code
+    rng = np.random.default_rng(4)
+    cap = make_capture(code, rng.integers(0, code.size, (6, 32)), rng=rng)
+    ref, got = cpu_pipe.decode(cap.frames, cap.white, cap.black), auto_pipe.decode(cap.frames, cap.white, cap.black)
+    for f in ("column", "confidence", "valid", "candidates", "distances"):
+        assert np.array_equal(getattr(ref, f), getattr(got, f)), f
