@@ -60,17 +60,17 @@ else:  # pragma: no cover - needs a CUDA device
     @cuda.jit(device=True)
     def mul64(a, b):
         """a * b in float64, one rounding (never contracted into an FMA)."""
-        return libdevice.dmul_rn(a, b)
+        return libdevice.dmul_rn(np.float64(a), np.float64(b))
 
     @cuda.jit(device=True)
     def mul32(a, b):
         """a * b in float32, one rounding (never contracted into an FMA)."""
-        return libdevice.fmul_rn(a, b)
+        return libdevice.fmul_rn(np.float32(a), np.float32(b))
 
     @cuda.jit(device=True)
     def rint(x):
         """Round half to even (float64)."""
-        return libdevice.rint(x)
+        return libdevice.rint(np.float64(x))
 
 
 @cuda.jit(device=True)
