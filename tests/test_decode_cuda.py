@@ -189,3 +189,22 @@ def test_runtime_pipeline_with_auto_backend_decodes_on_the_cpu_here():
     ref, got = cpu_pipe.decode(cap.frames, cap.white, cap.black), auto_pipe.decode(cap.frames, cap.white, cap.black)
     for f in ("column", "confidence", "valid", "candidates", "distances"):
         assert np.array_equal(getattr(ref, f), getattr(got, f)), f
+
+
+@needs_numba_cuda
+@pytest.mark.timeout(600)
+def test_kernels_compile_for_the_gpu_without_fused_multiply_adds():
+    """Every kernel compiles to sm_90 PTX with the real NVVM (no GPU needed) and none holds an
+    FMA: a plain ``a * b + c`` does get fused (the control), the kernels' products do not, so the
+    device rounds every product as the CPU does.  Skipped where NVVM / NVRTC are not installed."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    env.pop("NUMBA_ENABLE_CUDASIM", None)
+    proc = subprocess.run([sys.executable, str(HERE / "_cuda_ptx.py")], env=env, capture_output=True, text=True,
+                          timeout=540)
+    recs = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
+    missing = ("DynamicLibNotFound", "NvvmSupportError", "cannot be found", "libnvvm", "libnvrtc")
+    if not recs or any(not r["ok"] and any(m in r["error"] for m in missing) for r in recs):
+        pytest.skip(f"NVVM / NVRTC not installed here: {(proc.stderr or str(recs))[-300:]}")
+    assert recs[0]["kernel"].startswith("control") and recs[0]["fma"] > 0, recs[0]
+    bad = [r for r in recs[1:] if not r["ok"] or r["fma"] != 0]
+    assert len(recs) >= 11 and not bad, bad
