@@ -140,7 +140,9 @@ def search_device(ds: DeviceStack, code: Code, *, metric: int, sigma_r: float, s
 
     path (binary codes): "all" (every codeword, restricted to the band if one is given) or
     "band" (a scan of each pixel's band); default "band" for a band of at most
-    `BAND_SCAN_MAX` columns, else "all".  Both return the CPU backend's arrays exactly."""
+    `BAND_SCAN_MAX` columns, else "all".  Both return the CPU backend's arrays exactly.
+    stats: path, seconds (host time of the launches; kernels run asynchronously, callers that
+    copy the results back replace it with the whole time)."""
     h, w = ds.shape
     n = int(ds.frames.shape[0])
     use_band, min_d, max_d = band

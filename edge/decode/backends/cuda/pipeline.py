@@ -11,6 +11,7 @@ device's candidates, confidence and eligibility to the host filters of `edge.dec
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 import numpy as np
@@ -92,15 +93,18 @@ def decode_device(ds: DeviceStack, code: Code, s: DecodeSettings, *, columns: in
     return out
 
 
-def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0):
+def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | None = None):
     """Device results of `decode_device` -> `edge.decode.Decoded` (one download of each output;
-    the host spatial filters for "list" / "median" / "list+median")."""
+    the host spatial filters for "list" / "median" / "list+median").  t0: perf_counter at the
+    upload; stats["seconds"] becomes the time from it to the results on the host."""
     from ...decoder import Decoded
     from ...spatial import confidence_median, order_prior
 
     host = {k: v.copy_to_host(stream=stream) for k, v in out.items() if k != "stats"}
     if stream != 0:
         stream.synchronize()
+    if t0 is not None:
+        out["stats"]["seconds"] = time.perf_counter() - t0
     cand, conf = host["candidates"], host["confidence"]
     if s.method in ("soft", "hard"):
         return Decoded(column=host["column"], confidence=conf, valid=host["valid"], candidates=cand,
@@ -141,5 +145,6 @@ def decode_whole(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code:
     ncols = check_call(code, settings, inverse=inverse, columns=columns, stripe=stripe)
     stack = validate(frames, white, black, code, inverse=inverse, bit_depth=bit_depth)
     band = _band_args(stack.shape[1], min_disparity, max_disparity)
+    t0 = time.perf_counter()
     out = decode_device(upload(stack), code, settings, columns=ncols, band=band, stripe=stripe)
-    return finish(out, settings)
+    return finish(out, settings, t0=t0)

@@ -18,6 +18,7 @@ buffering): the next stack fills one set while the other is decoded, from one de
 from __future__ import annotations
 
 import threading
+import time
 from typing import Any
 
 import numpy as np
@@ -97,8 +98,9 @@ class Staging:
         inv_dev = dev[n + 2:] if self.inverse else dev[:1, :1, :1]
         ds = DeviceStack(frames=dev[:n], inverse=inv_dev, has_inv=self.inverse, white=dev[n], black=dev[n + 1],
                          scale=float(stack.scale), dtype=self.dtype, host_white=host[n], host_black=host[n + 1])
+        t0 = time.perf_counter()
         out = decode_device(ds, code, settings, columns=ncols, band=band, stripe=stripe, stream=stream)
-        return finish(out, settings, stream)
+        return finish(out, settings, stream, t0=t0)
 
     def decode_stack(self, frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code,
                      settings: DecodeSettings, *, inverse: np.ndarray | None = None, **facts: Any):
