@@ -123,10 +123,21 @@ def log_inputs(ds: DeviceStack, metric: int, sr2: float, ss2: float, stream: Any
     return LOG_PIXEL, ltab, cuda.to_device(logs, stream=stream)
 
 
-def _outputs(h: int, w: int, stream: Any) -> tuple[Any, Any, Any]:
-    return (cuda.device_array((h, w, 3), np.int32, stream=stream),
-            cuda.device_array((h, w, 3), np.float32, stream=stream),
-            cuda.device_array((h, w), np.float32, stream=stream))
+def buffer(buffers: dict | None, name: str, shape: tuple, dtype: Any, stream: Any = 0) -> Any:
+    """A device array: buffers[name] when it has this shape and dtype (reused across stacks:
+    no allocation per frame), else a new one (kept in `buffers` when given)."""
+    a = None if buffers is None else buffers.get(name)
+    if a is None or tuple(a.shape) != tuple(shape) or a.dtype != np.dtype(dtype):
+        a = cuda.device_array(shape, dtype, stream=stream)
+        if buffers is not None:
+            buffers[name] = a
+    return a
+
+
+def _outputs(h: int, w: int, stream: Any, buffers: dict | None = None, prefix: str = "") -> tuple[Any, Any, Any]:
+    return (buffer(buffers, prefix + "candidates", (h, w, 3), np.int32, stream),
+            buffer(buffers, prefix + "distances", (h, w, 3), np.float32, stream),
+            buffer(buffers, prefix + "confidence", (h, w), np.float32, stream))
 
 
 def _blocks(pixels: int, tpb: int) -> int:
@@ -135,21 +146,22 @@ def _blocks(pixels: int, tpb: int) -> int:
 
 def search_device(ds: DeviceStack, code: Code, *, metric: int, sigma_r: float, sigma_s: float,
                   columns: int, band: tuple[bool, int, int], stripe: int, path: str | None = None,
-                  stream: Any = 0) -> tuple[Any, Any, Any, dict]:
+                  stream: Any = 0, buffers: dict | None = None, prefix: str = "") -> tuple[Any, Any, Any, dict]:
     """Exact soft top-3 on the device: (candidates, distances, confidence) device arrays + stats.
 
     path (binary codes): "all" (every codeword, restricted to the band if one is given) or
     "band" (a scan of each pixel's band); default "band" for a band of at most
     `BAND_SCAN_MAX` columns, else "all".  Both return the CPU backend's arrays exactly.
     stats: path, seconds (host time of the launches; kernels run asynchronously, callers that
-    copy the results back replace it with the whole time)."""
+    copy the results back replace it with the whole time).  buffers / prefix: output arrays
+    reused from a caller's dict (`buffer`)."""
     h, w = ds.shape
     n = int(ds.frames.shape[0])
     use_band, min_d, max_d = band
     sr2, ss2 = float(sigma_r) ** 2, float(sigma_s) ** 2
     q_scale = float(Q_SCALE[metric])
     tb = device_tables(code)
-    cand, dist, conf = _outputs(h, w, stream)
+    cand, dist, conf = _outputs(h, w, stream, buffers, prefix)
     t0 = time.perf_counter()
     if code.q != 2:
         if n * code.q > nary_k.MAX_NQ:
@@ -186,12 +198,12 @@ def search_device(ds: DeviceStack, code: Code, *, metric: int, sigma_r: float, s
 
 
 def hard_device(ds: DeviceStack, code: Code, *, columns: int, band: tuple[bool, int, int], stripe: int,
-                stream: Any = 0) -> tuple[Any, Any, Any, dict]:
+                stream: Any = 0, buffers: dict | None = None, prefix: str = "") -> tuple[Any, Any, Any, dict]:
     """Hard decisions + nearest codeword on the device (see `edge.decode.backends` ``hard``)."""
     tb = device_tables(code)
     if code.q == 2 and tb["syndrome"]:
         h, w = ds.shape
-        cand, dist, conf = _outputs(h, w, stream)
+        cand, dist, conf = _outputs(h, w, stream, buffers, prefix)
         use_band, min_d, max_d = band
         t0 = time.perf_counter()
         hard_k.hard_syndrome[_blocks(h * w, hard_k.TPB), hard_k.TPB, stream](
@@ -200,6 +212,7 @@ def hard_device(ds: DeviceStack, code: Code, *, columns: int, band: tuple[bool, 
             min_d, max_d, stripe, cand, dist, conf)
         return cand, dist, conf, {"path": "cuda-syndrome", "seconds": time.perf_counter() - t0}
     cand, dist, conf, st = search_device(ds, code, metric=kernels.METRIC_HARD, sigma_r=1.0, sigma_s=0.0,
-                                         columns=columns, band=band, stripe=stripe, stream=stream)
+                                         columns=columns, band=band, stripe=stripe, stream=stream,
+                                         buffers=buffers, prefix=prefix)
     st["path"] = "cuda-hamming-search"
     return cand, dist, conf, st

@@ -15,26 +15,26 @@ import time
 from typing import Any
 
 import numpy as np
-from numba import cuda
 
 from ....codes import Code
 from ...inputs import validate
 from ...settings import DecodeSettings
 from . import refit as refit_k
 from . import validity as valid_k
-from .device import DeviceStack, _blocks, _dummy, device_tables, hard_device, search_device, upload
+from .device import DeviceStack, _blocks, _dummy, buffer, device_tables, hard_device, search_device, upload
 
 
 def _search(ds: DeviceStack, code: Code, method: str, s: DecodeSettings, metric: int, columns: int,
-            band: tuple[bool, int, int], stripe: int, stream: Any):
+            band: tuple[bool, int, int], stripe: int, stream: Any, buffers: dict | None, prefix: str = ""):
     if method == "hard":
-        return hard_device(ds, code, columns=columns, band=band, stripe=stripe, stream=stream)
+        return hard_device(ds, code, columns=columns, band=band, stripe=stripe, stream=stream, buffers=buffers,
+                           prefix=prefix)
     return search_device(ds, code, metric=metric, sigma_r=s.sigma_r, sigma_s=s.sigma_s, columns=columns,
-                         band=band, stripe=stripe, stream=stream)
+                         band=band, stripe=stripe, stream=stream, buffers=buffers, prefix=prefix)
 
 
 def refit_stack(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *, columns: int,
-                band: tuple[bool, int, int], stripe: int, stream: Any = 0) -> DeviceStack:
+                band: tuple[bool, int, int], stripe: int, stream: Any = 0, buffers: dict | None = None) -> DeviceStack:
     """`levels.decode_refined`'s levels on the device: normalise, `initial_levels`, one decode
     ("hard" for method "hard", else "soft"), `refine_levels`.  Returns the float32 stack with
     the refitted levels (scale 1) that the final decode uses."""
@@ -43,9 +43,9 @@ def refit_stack(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *, 
                          "do not use the calibration levels), got inverse=")
     n = int(ds.frames.shape[0])
     h, w = ds.shape
-    f = cuda.device_array((n, h, w), np.float32, stream=stream)
-    wv = cuda.device_array((h, w), np.float32, stream=stream)
-    bv = cuda.device_array((h, w), np.float32, stream=stream)
+    f = buffer(buffers, "refit_frames", (n, h, w), np.float32, stream)
+    wv = buffer(buffers, "refit_white0", (h, w), np.float32, stream)
+    bv = buffer(buffers, "refit_black0", (h, w), np.float32, stream)
     grid = _blocks(h * w, refit_k.TPB)
     refit_k.normalise[grid, refit_k.TPB, stream](ds.frames, ds.white, ds.black, np.float32(ds.scale), f, wv, bv)
     refit_k.initial_levels[grid, refit_k.TPB, stream](f, wv, bv)
@@ -53,39 +53,41 @@ def refit_stack(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *, 
     first = DeviceStack(frames=f, inverse=dummy, has_inv=False, white=wv, black=bv, scale=1.0,
                         dtype=np.dtype(np.float32))
     cand, _, _, _ = _search(first, code, "hard" if s.method == "hard" else "soft", s, metric, columns, band,
-                            stripe, stream)
+                            stripe, stream, buffers, prefix="refit_")
     tb = device_tables(code)
-    w2 = cuda.device_array((h, w), np.float32, stream=stream)
-    b2 = cuda.device_array((h, w), np.float32, stream=stream)
+    w2 = buffer(buffers, "refit_white", (h, w), np.float32, stream)
+    b2 = buffer(buffers, "refit_black", (h, w), np.float32, stream)
     refit_k.refine_levels[grid, refit_k.TPB, stream](f, wv, bv, tb["xtab"], tb["sx"], tb["sxx"], cand, w2, b2)
     return DeviceStack(frames=f, inverse=dummy, has_inv=False, white=w2, black=b2, scale=1.0,
                        dtype=np.dtype(np.float32))
 
 
 def decode_device(ds: DeviceStack, code: Code, s: DecodeSettings, *, columns: int, band: tuple[bool, int, int],
-                  stripe: int, stream: Any = 0) -> dict[str, Any]:
+                  stripe: int, stream: Any = 0, buffers: dict | None = None) -> dict[str, Any]:
     """Levels, search and (methods "soft" / "hard") the valid mask on the device.
 
     Returns device arrays: candidates (H, W, 3) int32, distances (H, W, 3) float32, confidence
     (H, W) float32, column0 (H, W) int32 (best candidate), eligible (H, W) bool, and for "soft" /
-    "hard" column (H, W) int32 (-1 where invalid) and valid (H, W) bool; plus stats."""
+    "hard" column (H, W) int32 (-1 where invalid) and valid (H, W) bool; plus stats.
+    buffers: a dict that keeps the device arrays between calls (no allocation per stack)."""
     from ...decoder import METRICS
 
     metric = METRICS[s.metric]
     if s.levels == "refit":
-        ds = refit_stack(ds, code, s, metric, columns=columns, band=band, stripe=stripe, stream=stream)
-    cand, dist, conf, st = _search(ds, code, s.method, s, metric, columns, band, stripe, stream)
+        ds = refit_stack(ds, code, s, metric, columns=columns, band=band, stripe=stripe, stream=stream,
+                         buffers=buffers)
+    cand, dist, conf, st = _search(ds, code, s.method, s, metric, columns, band, stripe, stream, buffers)
     h, w = ds.shape
     grid = _blocks(h * w, valid_k.TPB)
-    col0 = cuda.device_array((h, w), np.int32, stream=stream)
-    elig = cuda.device_array((h, w), np.bool_, stream=stream)
+    col0 = buffer(buffers, "column0", (h, w), np.int32, stream)
+    elig = buffer(buffers, "eligible", (h, w), np.bool_, stream)
     valid_k.eligible_column[grid, valid_k.TPB, stream](cand, ds.white, ds.black, np.float32(ds.scale),
                                                        np.float32(s.min_contrast), col0, elig)
     out = {"candidates": cand, "distances": dist, "confidence": conf, "column0": col0, "eligible": elig,
            "stats": st}
     if s.method in ("soft", "hard"):
-        column = cuda.device_array((h, w), np.int32, stream=stream)
-        valid = cuda.device_array((h, w), np.bool_, stream=stream)
+        column = buffer(buffers, "column", (h, w), np.int32, stream)
+        valid = buffer(buffers, "valid", (h, w), np.bool_, stream)
         valid_k.support_mask[grid, valid_k.TPB, stream](
             col0, conf, elig, bool(s.spatial_check), float(s.t_high), 3, 1, np.float32(s.min_confidence),
             np.float32(s.t_low), column, valid)

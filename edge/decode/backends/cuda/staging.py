@@ -48,6 +48,7 @@ class Staging:
         self._dev = [cuda.device_array((slots, *self.shape), self.dtype) for _ in range(sets)]
         self._streams = [cuda.stream() for _ in range(sets)]
         self._filled = [np.zeros(slots, bool) for _ in range(sets)]
+        self._buffers: list[dict] = [{} for _ in range(sets)]  # device outputs, reused per set
         self._fill = 0
         self._lock = threading.Lock()
 
@@ -99,7 +100,8 @@ class Staging:
         ds = DeviceStack(frames=dev[:n], inverse=inv_dev, has_inv=self.inverse, white=dev[n], black=dev[n + 1],
                          scale=float(stack.scale), dtype=self.dtype, host_white=host[n], host_black=host[n + 1])
         t0 = time.perf_counter()
-        out = decode_device(ds, code, settings, columns=ncols, band=band, stripe=stripe, stream=stream)
+        out = decode_device(ds, code, settings, columns=ncols, band=band, stripe=stripe, stream=stream,
+                            buffers=self._buffers[token])
         return finish(out, settings, stream, t0=t0)
 
     def decode_stack(self, frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code,
