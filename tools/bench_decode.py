@@ -1,6 +1,7 @@
 """Benchmark of the decoders (issue 4): median frames/s against a brute-force numpy baseline.
 
     python tools/bench_decode.py [--repeats 5] [--height 600 --width 700] [--cold-compile]
+    python tools/bench_decode.py --backend cuda [--small]     (GPU; see bench_cuda)
 
 Input: a synthetic capture (edge.decode.synthetic) of ecc-22-10 at 600 x 700 with random true
 columns inside a 128-column disparity band, albedo uniform in [0.1, 0.8], ambient 0.05,
@@ -107,6 +108,87 @@ def cold_compile() -> int:
     return 0
 
 
+def bench_cuda(args) -> int:
+    """--backend cuda: the CUDA backend against a plain GPU baseline (GEMM + top-3), one process.
+
+    Rows: kernel only (inputs already on the device; synchronised; median over --repeats) for
+    the soft top-3 over all 1024 codewords, the 128-column band and hard decoding, and the
+    baseline's three kernels; end to end from host uint8 frames to host column / confidence
+    (`Staging`: pinned uploads on a stream, decode with the valid mask on the device, one
+    download) with the default settings.  Every CUDA row is compared with the CPU backend on
+    the same input (identical arrays required).  --small: a 2 x 16 image, for the simulator."""
+    from numba import cuda
+
+    from edge.decode.backends import cuda as gpu
+    from edge.decode.backends.cuda.device import search_device, hard_device, upload
+    from edge.decode.backends.cuda.staging import Staging
+    from edge.decode.settings import DEFAULT_SETTINGS
+    from tools.bench_cuda_baseline import Baseline
+
+    if not gpu.is_available():
+        print("backend cuda: no CUDA device here (and NUMBA_ENABLE_CUDASIM is not set)", file=sys.stderr)
+        return 2
+    h, w = (2, 16) if args.small else (args.height, args.width)
+    code, cols, cap = make_input(h, w, min(args.band, w), args.seed)
+    fr, wh, bl = cap.frames, cap.white, cap.black
+    sim = gpu.SIM
+    print(f"ecc-22-10, {h} x {w} uint8, {args.repeats} repeats, device: "
+          f"{'numba-cuda SIMULATOR (timings meaningless)' if sim else cuda.get_current_device().name}", flush=True)
+    st = validate(fr, wh, bl, code)
+    ds = upload(st)
+    kw = dict(metric=METRIC_ML, sigma_r=DEFAULTS["sigma_r"], sigma_s=DEFAULTS["sigma_s"], columns=code.size, stripe=1)
+    band = (True, 0, min(args.band, w) - 1)
+
+    def gpu_timed(fn):
+        out = fn()
+        cuda.synchronize()
+        times = []
+        for _ in range(args.repeats):
+            t0 = time.perf_counter()
+            out = fn()
+            cuda.synchronize()
+            times.append(time.perf_counter() - t0)
+        return out, statistics.median(times)
+
+    def row(name, med, base=None, exact=None):
+        ratio = f"{base / med:6.2f}x" if base else "  1.00x"
+        ex = "" if exact is None else f"  identical to CPU: {exact}"
+        print(f"{name:<52} median {med * 1e3:8.3f} ms  {1.0 / med:9.1f} frames/s {ratio}{ex}", flush=True)
+
+    bl_run = Baseline(code.n, h, w, code.codebook, DEFAULTS["sigma_r"], DEFAULTS["sigma_s"])
+    bcand, bmed = gpu_timed(lambda: bl_run.run(ds.frames, ds.white, ds.black))
+    row("baseline: GEMM + top-3 (float32, numba-cuda)", bmed)
+    ok = True
+    bufs: dict = {}  # output arrays reused between calls, as Staging does
+    for name, fn, ref in [
+        ("kernel: soft exact top-3, all 1024 codewords",
+         lambda: search_device(ds, code, band=(False, 0, 0), buffers=bufs, **kw),
+         lambda: cpu_backend.search(st, code, band=(False, 0, 0), **kw)),
+        (f"kernel: soft exact top-3, {band[2] + 1}-column band",
+         lambda: search_device(ds, code, band=band, buffers=bufs, **kw),
+         lambda: cpu_backend.search(st, code, band=band, **kw)),
+        ("kernel: hard (syndrome)",
+         lambda: hard_device(ds, code, columns=code.size, band=(False, 0, 0), stripe=1, buffers=bufs),
+         lambda: cpu_backend.hard(st, code, columns=code.size, band=(False, 0, 0), stripe=1)),
+    ]:
+        out, med = gpu_timed(fn)
+        r = ref()
+        same = all(np.array_equal(a.copy_to_host(), b) for a, b in zip(out[:3], r[:3]))
+        ok &= same
+        row(name, med, bmed, same)
+    s = DEFAULT_SETTINGS.replace(backend="cuda")
+    stage = Staging(code.n, (h, w), np.uint8)
+    for name, opts in [("end to end: host uint8 -> host column/confidence (default)", {}),
+                       (f"end to end: same, {band[2] + 1}-column band", dict(min_disparity=band[1], max_disparity=band[2]))]:
+        d, med = gpu_timed(lambda: stage.decode_stack(fr, wh, bl, code, s, **opts))
+        ref = decode(fr, wh, bl, code, **opts)
+        same = all(np.array_equal(getattr(d, f), getattr(ref, f)) for f in ("column", "confidence", "valid"))
+        ok &= same
+        row(name, med, bmed, same)
+    print(f"all CUDA rows identical to the CPU backend: {ok}", flush=True)
+    return 0 if ok else 1
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--height", type=int, default=600)
@@ -117,9 +199,15 @@ def main(argv=None) -> int:
     p.add_argument("--cold-compile", action="store_true",
                    help="also measure compile times in a subprocess with an empty numba cache")
     p.add_argument("--_child-compile", action="store_true", help=argparse.SUPPRESS)
+    p.add_argument("--backend", choices=("cpu", "cuda"), default="cpu",
+                   help="cuda: the CUDA backend against a plain GPU GEMM + top-3 baseline (bench_cuda)")
+    p.add_argument("--small", action="store_true",
+                   help="with --backend cuda: a 2 x 16 image (checks the code path under NUMBA_ENABLE_CUDASIM=1)")
     args = p.parse_args(argv)
     if args._child_compile:
         return cold_compile()
+    if args.backend == "cuda":
+        return bench_cuda(args)
     h, w = args.height, args.width
     code, cols, cap = make_input(h, w, args.band, args.seed)
     fr, wh, bl = cap.frames, cap.white, cap.black

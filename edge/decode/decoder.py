@@ -123,6 +123,11 @@ def decode(
     method, metric, sigma_r, sigma_s = s.method, s.metric, s.sigma_r, s.sigma_s
     min_contrast, min_confidence, t_low, t_high = s.min_contrast, s.min_confidence, s.t_low, s.t_high
     spatial_check = s.spatial_check
+    if s.backend != "cpu":  # device backends (edge.decode.backends.cuda) run levels, search and mask whole
+        whole = getattr(get_backend(s.backend), "decode_whole", None)
+        if whole is not None:
+            return whole(frames, white, black, code, s, inverse=inverse, min_disparity=min_disparity,
+                         max_disparity=max_disparity, columns=columns, stripe=stripe, bit_depth=bit_depth)
     if s.levels == "refit":
         if inverse is not None:
             raise ValueError("levels: 'refit' expects no inverse frames (pattern + inverse decisions "

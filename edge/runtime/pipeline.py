@@ -94,11 +94,15 @@ class DepthPipeline:
     def decode(self, codes: np.ndarray, white: np.ndarray, black: np.ndarray):
         """`edge.decode.decode` with the profile's method, noise model, thresholds and disparity band."""
         from edge.decode import decode
+        from edge.decode.backends import get as get_backend
         from edge.decode.settings import from_profile
 
         p = self.profile
+        settings = from_profile(p)
+        if settings.backend != "cpu" and get_backend(settings.backend).__name__.endswith(".cuda"):
+            from edge.decode.backends.cuda.staging import decode_staged as decode  # pinned buffers + a stream
         return decode(
-            codes, white, black, self.code, settings=from_profile(p),
+            codes, white, black, self.code, settings=settings,
             min_disparity=p.decoder.min_disparity, max_disparity=p.decoder.max_disparity,
             columns=self.columns, stripe=self.stripe,
             bit_depth=p.camera.bits if codes.dtype == np.uint16 else None,

@@ -1,0 +1,84 @@
+"""The CUDA backend (numba-cuda): the exact top-3 search, hard decoding, the level refit and the
+valid mask on an NVIDIA GPU, with the CPU backend's results bit for bit.
+
+Implements the backend seam of `edge.decode.backends` (``search``, ``hard``) plus
+``decode_whole`` (levels, search and valid mask on the device, used by `edge.decode.decode`
+for backend "cuda") and `Staging` (pinned host buffers and a stream: frames uploaded as they
+arrive, results copied back once; the service's decode thread uses it).
+
+Files by algorithm: `cost` (the shared device-side cost model), `soft` (top-3 over all
+codewords / over a disparity band), `nary` (N-ary codes), `hard` (syndrome decoding),
+`refit` (level self-calibration), `validity` (valid mask, spatial support), `device` (device
+stacks, tables, launches), `pipeline` (whole decodes on the device), `staging`.
+
+Needs the ``numba-cuda`` package (``pip install 'edge[gpu]'``); importing this module raises
+ImportError without it.  Under ``NUMBA_ENABLE_CUDASIM=1`` the kernels run on numba-cuda's CPU
+simulator (slow: tests use tiny images).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+
+if importlib.util.find_spec("numba_cuda") is None:  # numba's own numba.cuda is deprecated
+    raise ImportError("backend 'cuda' needs the numba-cuda package (pip install 'edge[gpu]')")
+
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+from numba import cuda  # noqa: E402
+
+from ....codes import Code  # noqa: E402
+from ...inputs import Stack  # noqa: E402
+from .cost import SIM  # noqa: E402
+from .device import DeviceStack, hard_device, search_device, upload  # noqa: E402
+
+__all__ = ["SIM", "DeviceStack", "Staging", "decode_whole", "hard", "is_available", "search", "staging_for", "upload"]
+
+
+def is_available() -> bool:
+    """True when kernels can run: a CUDA device is present, or the simulator is enabled."""
+    try:
+        return bool(cuda.is_available())
+    except Exception:  # a broken driver install reads as "no device"
+        return False
+
+
+def _host(cand, dist, conf, st, t0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
+    """Results on the host; stats["seconds"] = upload + kernels + download (launches are async)."""
+    out = (cand.copy_to_host(), dist.copy_to_host(), conf.copy_to_host())
+    st["seconds"] = time.perf_counter() - t0
+    return (*out, st)
+
+
+def search(stack: Stack, code: Code, *, metric: int, sigma_r: float, sigma_s: float, columns: int,
+           band: tuple[bool, int, int], stripe: int, path: str | None = None):
+    """Exact top-3 search on the GPU (see `edge.decode.backends`): one upload, one download.
+
+    path (binary codes): "all" or "band" (`device.search_device`); None picks one."""
+    t0 = time.perf_counter()
+    ds = upload(stack)
+    cand, dist, conf, st = search_device(ds, code, metric=metric, sigma_r=sigma_r, sigma_s=sigma_s,
+                                         columns=columns, band=band, stripe=stripe, path=path)
+    return _host(cand, dist, conf, st, t0)
+
+
+def hard(stack: Stack, code: Code, *, columns: int, band: tuple[bool, int, int], stripe: int):
+    """Hard decisions, nearest codeword in Hamming distance, on the GPU (see `edge.decode.backends`)."""
+    t0 = time.perf_counter()
+    ds = upload(stack)
+    cand, dist, conf, st = hard_device(ds, code, columns=columns, band=band, stripe=stripe)
+    return _host(cand, dist, conf, st, t0)
+
+
+def __getattr__(name: str):
+    # the whole-decode pipeline and the staging class import the decoder's settings lazily
+    if name == "decode_whole":
+        from .pipeline import decode_whole
+
+        return decode_whole
+    if name in ("Staging", "staging_for"):
+        from . import staging
+
+        return getattr(staging, name)
+    raise AttributeError(name)

@@ -1,0 +1,152 @@
+"""Whole decodes on the device: levels (calibration or refit), search, valid mask.
+
+`decode_device` runs on a `DeviceStack` and leaves its results on the device; `decode_whole` is
+`edge.decode.decode` for backend "cuda" (the decoder hands the whole call over): the same
+argument checks, one upload, and one download of the outputs.  Methods "soft" / "hard" get
+their valid mask on the device (`validity`); "list" / "median" / "list+median" take the
+device's candidates, confidence and eligibility to the host filters of `edge.decode.spatial`
+(sequential along rows, as the CPU backend does).  ``levels="refit"`` follows
+`edge.decode.levels.decode_refined` (one refit iteration) with `refit`'s kernels.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from ....codes import Code
+from ...inputs import validate
+from ...settings import DecodeSettings
+from . import refit as refit_k
+from . import validity as valid_k
+from .device import DeviceStack, _blocks, _dummy, buffer, device_tables, hard_device, search_device, upload
+
+
+def _search(ds: DeviceStack, code: Code, method: str, s: DecodeSettings, metric: int, columns: int,
+            band: tuple[bool, int, int], stripe: int, stream: Any, buffers: dict | None, prefix: str = ""):
+    if method == "hard":
+        return hard_device(ds, code, columns=columns, band=band, stripe=stripe, stream=stream, buffers=buffers,
+                           prefix=prefix)
+    return search_device(ds, code, metric=metric, sigma_r=s.sigma_r, sigma_s=s.sigma_s, columns=columns,
+                         band=band, stripe=stripe, stream=stream, buffers=buffers, prefix=prefix)
+
+
+def refit_stack(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *, columns: int,
+                band: tuple[bool, int, int], stripe: int, stream: Any = 0, buffers: dict | None = None) -> DeviceStack:
+    """`levels.decode_refined`'s levels on the device: normalise, `initial_levels`, one decode
+    ("hard" for method "hard", else "soft"), `refine_levels`.  Returns the float32 stack with
+    the refitted levels (scale 1) that the final decode uses."""
+    if ds.has_inv:
+        raise ValueError("levels: 'refit' expects no inverse frames (pattern + inverse decisions "
+                         "do not use the calibration levels), got inverse=")
+    n = int(ds.frames.shape[0])
+    h, w = ds.shape
+    f = buffer(buffers, "refit_frames", (n, h, w), np.float32, stream)
+    wv = buffer(buffers, "refit_white0", (h, w), np.float32, stream)
+    bv = buffer(buffers, "refit_black0", (h, w), np.float32, stream)
+    grid = _blocks(h * w, refit_k.TPB)
+    refit_k.normalise[grid, refit_k.TPB, stream](ds.frames, ds.white, ds.black, np.float32(ds.scale), f, wv, bv)
+    refit_k.initial_levels[grid, refit_k.TPB, stream](f, wv, bv)
+    dummy = _dummy("inv32", (1, 1, 1), np.float32)
+    first = DeviceStack(frames=f, inverse=dummy, has_inv=False, white=wv, black=bv, scale=1.0,
+                        dtype=np.dtype(np.float32))
+    cand, _, _, _ = _search(first, code, "hard" if s.method == "hard" else "soft", s, metric, columns, band,
+                            stripe, stream, buffers, prefix="refit_")
+    tb = device_tables(code)
+    w2 = buffer(buffers, "refit_white", (h, w), np.float32, stream)
+    b2 = buffer(buffers, "refit_black", (h, w), np.float32, stream)
+    refit_k.refine_levels[grid, refit_k.TPB, stream](f, wv, bv, tb["xtab"], tb["sx"], tb["sxx"], cand, w2, b2)
+    return DeviceStack(frames=f, inverse=dummy, has_inv=False, white=w2, black=b2, scale=1.0,
+                       dtype=np.dtype(np.float32))
+
+
+def decode_device(ds: DeviceStack, code: Code, s: DecodeSettings, *, columns: int, band: tuple[bool, int, int],
+                  stripe: int, stream: Any = 0, buffers: dict | None = None) -> dict[str, Any]:
+    """Levels, search and (methods "soft" / "hard") the valid mask on the device.
+
+    Returns device arrays: candidates (H, W, 3) int32, distances (H, W, 3) float32, confidence
+    (H, W) float32, column0 (H, W) int32 (best candidate), eligible (H, W) bool, and for "soft" /
+    "hard" column (H, W) int32 (-1 where invalid) and valid (H, W) bool; plus stats.
+    buffers: a dict that keeps the device arrays between calls (no allocation per stack)."""
+    from ...decoder import METRICS
+
+    metric = METRICS[s.metric]
+    if s.levels == "refit":
+        ds = refit_stack(ds, code, s, metric, columns=columns, band=band, stripe=stripe, stream=stream,
+                         buffers=buffers)
+    cand, dist, conf, st = _search(ds, code, s.method, s, metric, columns, band, stripe, stream, buffers)
+    h, w = ds.shape
+    grid = _blocks(h * w, valid_k.TPB)
+    col0 = buffer(buffers, "column0", (h, w), np.int32, stream)
+    elig = buffer(buffers, "eligible", (h, w), np.bool_, stream)
+    valid_k.eligible_column[grid, valid_k.TPB, stream](cand, ds.white, ds.black, np.float32(ds.scale),
+                                                       np.float32(s.min_contrast), col0, elig)
+    out = {"candidates": cand, "distances": dist, "confidence": conf, "column0": col0, "eligible": elig,
+           "stats": st}
+    if s.method in ("soft", "hard"):
+        column = buffer(buffers, "column", (h, w), np.int32, stream)
+        valid = buffer(buffers, "valid", (h, w), np.bool_, stream)
+        valid_k.support_mask[grid, valid_k.TPB, stream](
+            col0, conf, elig, bool(s.spatial_check), float(s.t_high), 3, 1, np.float32(s.min_confidence),
+            np.float32(s.t_low), column, valid)
+        out["column"], out["valid"] = column, valid
+    return out
+
+
+def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | None = None):
+    """Device results of `decode_device` -> `edge.decode.Decoded` (one download of each output;
+    the host spatial filters for "list" / "median" / "list+median").  t0: perf_counter at the
+    upload; stats["seconds"] becomes the time from it to the results on the host."""
+    from ...decoder import Decoded
+    from ...spatial import confidence_median, order_prior
+
+    host = {k: v.copy_to_host(stream=stream) for k, v in out.items() if k != "stats"}
+    if stream != 0:
+        stream.synchronize()
+    if t0 is not None:
+        out["stats"]["seconds"] = time.perf_counter() - t0
+    cand, conf = host["candidates"], host["confidence"]
+    if s.method in ("soft", "hard"):
+        return Decoded(column=host["column"], confidence=conf, valid=host["valid"], candidates=cand,
+                       distances=host["distances"], stats=out["stats"])
+    eligible = host["eligible"]
+    if s.method in ("list", "list+median"):
+        column, valid = order_prior(cand, conf, eligible, t_high=s.t_high, t_low=s.t_low)
+    else:
+        column = host["column0"]
+    if s.method in ("median", "list+median"):
+        column, valid = confidence_median(column, conf, eligible & (column >= 0), t_low=s.t_low,
+                                          t_high=s.t_high, candidates=cand)
+    column = np.where(valid, column, -1).astype(np.int32)
+    return Decoded(column=column, confidence=conf, valid=column >= 0, candidates=cand,
+                   distances=host["distances"], stats=out["stats"])
+
+
+def check_call(code: Code, s: DecodeSettings, *, inverse: Any, columns: int | None, stripe: int) -> int:
+    """`edge.decode.decode`'s argument checks (same messages); returns the codebook rows in use."""
+    if s.levels == "refit" and inverse is not None:
+        raise ValueError("levels: 'refit' expects no inverse frames (pattern + inverse decisions "
+                         "do not use the calibration levels), got inverse=")
+    if stripe < 1:
+        raise ValueError(f"stripe: expected >= 1, got {stripe}")
+    ncols = code.size if columns is None else int(columns)
+    if not 1 <= ncols <= code.size:
+        raise ValueError(f"columns: expected 1..{code.size} for code {code.name!r}, got {columns}")
+    return ncols
+
+
+def decode_whole(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code, settings: DecodeSettings, *,
+                 inverse: np.ndarray | None = None, min_disparity: float | None = None,
+                 max_disparity: float | None = None, columns: int | None = None, stripe: int = 1,
+                 bit_depth: int | None = None):
+    """`edge.decode.decode` on the device (same arguments, same `Decoded`, same results)."""
+    from ...decoder import _band_args
+
+    ncols = check_call(code, settings, inverse=inverse, columns=columns, stripe=stripe)
+    stack = validate(frames, white, black, code, inverse=inverse, bit_depth=bit_depth)
+    band = _band_args(stack.shape[1], min_disparity, max_disparity)
+    t0 = time.perf_counter()
+    out = decode_device(upload(stack), code, settings, columns=ncols, band=band, stripe=stripe)
+    return finish(out, settings, t0=t0)

@@ -1,0 +1,294 @@
+"""The CUDA backend's exactness checks, run by tests/test_decode_cuda.py in a subprocess.
+
+    python tests/_cuda_checks.py [--full]
+
+Without --full: tiny images (the numba-cuda simulator, ``NUMBA_ENABLE_CUDASIM=1``, runs each
+GPU thread in Python); with --full (a real GPU): 600 x 700 / 120 x 160 images.  Prints one
+JSON object per line: {"check": name, "ok": bool, "detail": str}.  Every check compares the
+CUDA backend's arrays with the CPU backend's (np.array_equal: bit for bit) and, for the soft
+searches, with the brute-force reference of tests/test_decode.py.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+sys.path.insert(0, str(HERE))
+
+from edge.codes import get_code  # noqa: E402
+from edge.decode import decode  # noqa: E402
+from edge.decode.backends import Q_SCALE, cpu, resolve  # noqa: E402
+from edge.decode.backends import cuda as gpu  # noqa: E402
+from edge.decode.inputs import validate  # noqa: E402
+from edge.decode.kernels import METRIC_HARD, METRIC_ML, METRIC_NORMALIZED  # noqa: E402
+from edge.decode.synthetic import make_capture  # noqa: E402
+from test_decode import check_exact, reference_costs  # noqa: E402
+
+FULL = "--full" in sys.argv
+SR, SS = 0.01, 0.03
+FIELDS = ("column", "confidence", "valid", "candidates", "distances")
+
+
+def emit(name: str, ok: bool, detail: str = "") -> None:
+    print(json.dumps({"check": name, "ok": bool(ok), "detail": detail}), flush=True)
+
+
+def capture(code, h, w, *, dtype=np.uint8, inverse=False, seed=0, band_center=None, dark=0.1):
+    """A synthetic capture; columns near x - band_center when given (a disparity band), some
+    pixels with white <= black."""
+    rng = np.random.default_rng(seed)
+    if band_center is None:
+        cols = rng.integers(0, code.size, (h, w))
+    else:
+        x = np.arange(w)[None, :]
+        cols = np.clip(x - band_center + rng.integers(-2, 3, (h, w)), 0, code.size - 1)
+    cap = make_capture(code, cols, rng=rng, albedo=rng.uniform(0.02, 0.6, (h, w)), sigma_s=0.06,
+                       dtype=dtype, inverse=inverse)
+    white, black = cap.white.copy(), cap.black.copy()
+    off = rng.random((h, w)) < dark
+    white[off] = black[off]
+    return cap, white, black
+
+
+def same_arrays(a, b) -> tuple[bool, str]:
+    bad = [i for i, (x, y) in enumerate(zip(a, b)) if not np.array_equal(x, y)]
+    return not bad, f"differs in outputs {bad}" if bad else ""
+
+
+def check_search(name, code_name, *, h, w, dtype=np.uint8, inverse=False, metric=METRIC_ML, band=(False, 0, 0),
+                 columns=None, stripe=1, brute=False, path=None, bit_depth=None):
+    code = get_code(code_name)
+    cap, white, black = capture(code, h, w, dtype=dtype, inverse=inverse, dark=0.0 if brute else 0.1,
+                                band_center=(band[1] + band[2]) // 2 if band[0] else None)
+    st = validate(cap.frames, white, black, code, inverse=cap.inverse, bit_depth=bit_depth)
+    kw = dict(metric=metric, sigma_r=SR, sigma_s=SS, columns=code.size if columns is None else columns,
+              band=band, stripe=stripe)
+    ref = cpu.search(st, code, **kw)
+    got = gpu.search(st, code, path=path, **kw)
+    ok, detail = same_arrays(ref[:3], got[:3])
+    detail += f" path {got[3]['path']}"
+    if ok and brute:
+        from edge.decode import Decoded
+
+        mname = "ml" if metric == METRIC_ML else "normalized"
+        arrays = [cap.frames, white, black, cap.inverse]
+        if dtype == np.uint16:  # the reference takes uint8 or normalised floats
+            arrays = [None if a is None else a.astype(np.float64) * st.scale for a in arrays]
+        costs = reference_costs(*arrays[:3], code, inverse=arrays[3], metric=mname)
+        if band[0]:  # candidates outside the pixel's band are not candidates
+            x = np.arange(w)[:, None]
+            c = np.arange(code.size)[None, :]
+            inside = (c >= (x - band[2]) // stripe) & (c <= (x - band[1]) // stripe)
+            costs = np.where(inside[None], costs, 1e30)
+        d = Decoded(column=got[0][..., 0], confidence=got[2], valid=got[0][..., 0] >= 0, candidates=got[0],
+                    distances=got[1])
+        try:
+            check_exact(d, costs, tol=code.n / Q_SCALE[metric])
+        except AssertionError as e:
+            ok, detail = False, f"brute force: {e}"
+    emit(name, ok, detail)
+
+
+def check_hard(name, code_name, *, h, w, inverse=False, band=(False, 0, 0)):
+    code = get_code(code_name)
+    cap, white, black = capture(code, h, w, inverse=inverse)
+    st = validate(cap.frames, white, black, code, inverse=cap.inverse)
+    kw = dict(columns=code.size, band=band, stripe=1)
+    ref, got = cpu.hard(st, code, **kw), gpu.hard(st, code, **kw)
+    ok, detail = same_arrays(ref[:3], got[:3])
+    emit(name, ok, detail + f" path {got[3]['path']} (cpu {ref[3]['path']})")
+
+
+def check_decode(name, code_name, *, h, w, dtype=np.uint8, inverse=False, **opts):
+    code = get_code(code_name)
+    cap, white, black = capture(code, h, w, dtype=dtype, inverse=inverse, band_center=4, dark=0.05)
+    kw = dict(inverse=cap.inverse, min_disparity=0, max_disparity=8, **opts)
+    ref = decode(cap.frames, white, black, code, backend="cpu", **kw)
+    got = decode(cap.frames, white, black, code, backend="cuda", **kw)
+    ok, detail = same_arrays([getattr(ref, f) for f in FIELDS], [getattr(got, f) for f in FIELDS])
+    emit(name, ok and int(ref.valid.sum()) > 0, detail + f" valid {int(ref.valid.sum())} path {got.stats['path']}")
+
+
+def check_validity(name, *, h, w):
+    """The device valid mask against validity.eligible_column / spatial_support / final_mask on
+    crafted columns (clusters, near ties of the median, even voter counts)."""
+    from numba import cuda
+
+    from edge.decode.backends.cuda import validity as vk
+    from edge.decode.spatial import spatial_support
+    from edge.decode.validity import eligible_column, final_mask
+
+    rng = np.random.default_rng(7)
+    cand = rng.integers(0, 6, (h, w, 3)).astype(np.int32)
+    cand[rng.random((h, w)) < 0.1] = -1
+    conf = rng.choice(np.float32([0.0, 0.04, 0.05, 0.2, 0.3, 0.29999998, 0.31, 0.9]), (h, w))
+    white = rng.integers(0, 40, (h, w)).astype(np.uint8)
+    black = rng.integers(0, 20, (h, w)).astype(np.uint8)
+    scale, min_c, min_conf, t_low, t_high = np.float32(1 / 255), np.float32(0.02), np.float32(0.3), np.float32(0.05), 0.3
+    col0, elig = np.empty((h, w), np.int32), np.empty((h, w), bool)
+    eligible_column(cand, white, black, scale, min_c, col0, elig)
+    ok = True
+    for use in (True, False):
+        support = spatial_support(col0, conf, elig, t_vote=t_high) if use else elig
+        col, valid = np.empty((h, w), np.int32), np.empty((h, w), bool)
+        final_mask(col0, conf, elig, support, use, min_conf, t_low, col, valid)
+        d = [cuda.to_device(a) for a in (cand, white, black)]
+        gcol0 = cuda.device_array((h, w), np.int32)
+        gel = cuda.device_array((h, w), np.bool_)
+        grid = (h * w + vk.TPB - 1) // vk.TPB
+        vk.eligible_column[grid, vk.TPB](d[0], d[1], d[2], scale, min_c, gcol0, gel)
+        gcol, gval = cuda.device_array((h, w), np.int32), cuda.device_array((h, w), np.bool_)
+        vk.support_mask[grid, vk.TPB](gcol0, cuda.to_device(conf), gel, use, float(t_high), 3, 1, min_conf, t_low,
+                                      gcol, gval)
+        for a, b in ((col0, gcol0), (elig, gel), (col, gcol), (valid, gval)):
+            ok &= np.array_equal(a, b.copy_to_host())
+    emit(name, ok, f"{int(valid.sum())} valid")
+
+
+def check_refit_kernels(name, code_name, *, h, w):
+    """refit.refine_levels / initial_levels / normalise against edge.decode.levels on the same inputs."""
+    from numba import cuda
+
+    from edge.decode import levels
+    from edge.decode.backends.cuda import refit as rk
+    from edge.decode.backends.cuda.device import device_tables
+
+    code = get_code(code_name)
+    cap, white, black = capture(code, h, w, dtype=np.uint16, dark=0.2)
+    f, wn, bn = levels.normalised(cap.frames, white, black, code)
+    wi, bi = levels.initial_levels(f, wn, bn)
+    rng = np.random.default_rng(3)
+    col = rng.integers(-1, code.size, (h, w)).astype(np.int32)
+    wr, br = levels.refine_levels(f, wi, bi, code, col)
+    scale = np.float32(1.0 / 65535)
+    gf = cuda.device_array(f.shape, np.float32)
+    gw, gb = cuda.device_array((h, w), np.float32), cuda.device_array((h, w), np.float32)
+    grid = (h * w + rk.TPB - 1) // rk.TPB
+    rk.normalise[grid, rk.TPB](cuda.to_device(cap.frames), cuda.to_device(white), cuda.to_device(black), scale, gf, gw, gb)
+    ok = np.array_equal(gf.copy_to_host(), f) and np.array_equal(gw.copy_to_host(), wn)
+    rk.initial_levels[grid, rk.TPB](gf, gw, gb)
+    ok_init = np.array_equal(gw.copy_to_host(), wi) and np.array_equal(gb.copy_to_host(), bi)
+    tb = device_tables(code)
+    cand = np.stack([col, col, col], -1)
+    ow, ob = cuda.device_array((h, w), np.float32), cuda.device_array((h, w), np.float32)
+    rk.refine_levels[grid, rk.TPB](gf, gw, gb, tb["xtab"], tb["sx"], tb["sxx"], cuda.to_device(cand), ow, ob)
+    ok_ref = np.array_equal(ow.copy_to_host(), wr) and np.array_equal(ob.copy_to_host(), br)
+    emit(name, ok and ok_init and ok_ref, f"normalise {ok} initial {ok_init} refine {ok_ref}; "
+                                          f"{int((~(wn > bn)).sum())} pixels with white <= black")
+
+
+def check_staging(name, code_name, *, h, w):
+    from edge.decode.backends.cuda.staging import Staging
+    from edge.decode.settings import DEFAULT_SETTINGS
+
+    code = get_code(code_name)
+    cap, white, black = capture(code, h, w, band_center=4, dark=0.05)
+    s = DEFAULT_SETTINGS.replace(backend="cuda")
+    st = Staging(code.n, (h, w), np.uint8)
+    ok = True
+    for _ in range(3):  # three stacks through the two buffer sets
+        for i in range(code.n):
+            st.put(i, cap.frames[i])
+        st.put_white(white)
+        st.put_black(black)
+        got = st.decode(st.commit(), code, s, min_disparity=0, max_disparity=8)
+        ref = decode(cap.frames, white, black, code, min_disparity=0, max_disparity=8)
+        ok &= all(np.array_equal(getattr(ref, f), getattr(got, f)) for f in FIELDS)
+    try:
+        st.put(0, cap.frames[0])
+        st.commit()
+        ok = False
+    except ValueError as e:
+        ok &= "never put" in str(e)
+    emit(name, ok, "")
+
+
+def check_runtime_pipeline(name):
+    """The runtime's DepthPipeline with ``[decoder] backend = "cuda"`` decodes through `Staging`
+    and returns the CPU pipeline's columns / confidence / valid mask."""
+    from _service_helpers import load_test_profile
+
+    from edge.decode.backends.cuda import staging
+    from edge.runtime.pipeline import DepthPipeline
+
+    cpu_pipe = DepthPipeline(load_test_profile())
+    gpu_pipe = DepthPipeline(load_test_profile(decoder={"backend": "cuda"}))
+    code = cpu_pipe.code
+    h, w = 3, 24
+    cap, white, black = capture(code, h, w, band_center=8, dark=0.05)
+    ref = cpu_pipe.decode(cap.frames, white, black)
+    staging._CACHE.clear()
+    got = gpu_pipe.decode(cap.frames, white, black)
+    ok = all(np.array_equal(getattr(ref, f), getattr(got, f)) for f in FIELDS) and len(staging._CACHE) == 1
+    emit(name, ok, f"code {code.name}, staged {len(staging._CACHE)}, valid {int(ref.valid.sum())}")
+
+
+def main() -> int:
+    emit("resolve-auto", resolve("auto") == "cuda" and gpu.is_available(), resolve("auto"))
+    s = (600, 700) if FULL else (2, 16)  # all-codeword searches
+    b = (120, 160) if FULL else (3, 24)  # band searches, decode()
+    band = (True, 0, 127) if FULL else (True, -4, 12)
+    checks = [
+        ("soft-all-ecc-22-10-uint8", lambda: check_search("soft-all-ecc-22-10-uint8", "ecc-22-10", h=s[0], w=s[1], brute=True)),
+        ("soft-all-gray-10-inverse", lambda: check_search("soft-all-gray-10-inverse", "gray-10", h=s[0], w=s[1],
+                                                          inverse=True, brute=True)),
+        # float32 with the all-codeword kernel restricted to a band: the CPU reference is then the
+        # float32 band kernel the refit checks compile anyway (CI cost on a cold numba cache)
+        ("soft-all-ecc-22-10-float32-normalized-columns", lambda: check_search(
+            "soft-all-ecc-22-10-float32-normalized-columns", "ecc-22-10", h=b[0], w=b[1], dtype=np.float32,
+            metric=METRIC_NORMALIZED, columns=300, band=band, path="all")),
+        ("soft-band-ecc-22-10-uint16", lambda: check_search("soft-band-ecc-22-10-uint16", "ecc-22-10", h=b[0], w=b[1],
+                                                            dtype=np.uint16, band=band, brute=True)),
+        ("soft-band-ecc-22-10-inverse-stripe", lambda: check_search(
+            "soft-band-ecc-22-10-inverse-stripe", "ecc-22-10", h=b[0], w=b[1], inverse=True, band=band, stripe=2,
+            columns=500)),
+        ("soft-band-gray-10-bitdepth-normalized", lambda: check_search(
+            "soft-band-gray-10-bitdepth-normalized", "gray-10", h=b[0], w=b[1], dtype=np.uint16, band=band,
+            metric=METRIC_NORMALIZED, bit_depth=16)),
+        ("soft-all-restricted-to-band", lambda: check_search("soft-all-restricted-to-band", "ecc-22-10", h=b[0],
+                                                             w=b[1], band=band, path="all")),
+        ("soft-nary3-6", lambda: check_search("soft-nary3-6", "nary3-6", h=s[0], w=s[1], band=band)),
+        ("hard-metric-search-gray-10", lambda: check_search("hard-metric-search-gray-10", "gray-10", h=s[0], w=s[1],
+                                                            metric=METRIC_HARD)),
+        ("hard-ecc-22-10", lambda: check_hard("hard-ecc-22-10", "ecc-22-10", h=b[0], w=b[1])),
+        ("hard-ecc-22-10-inverse-band", lambda: check_hard("hard-ecc-22-10-inverse-band", "ecc-22-10", h=b[0], w=b[1],
+                                                           inverse=True, band=band)),
+        ("hard-gray-10", lambda: check_hard("hard-gray-10", "gray-10", h=s[0], w=s[1])),
+        ("validity", lambda: check_validity("validity", h=b[0] * 3, w=b[1])),
+        ("refit-kernels-ecc-22-10", lambda: check_refit_kernels("refit-kernels-ecc-22-10", "ecc-22-10", h=b[0], w=b[1])),
+        ("refit-kernels-rs16-15-4", lambda: check_refit_kernels("refit-kernels-rs16-15-4", "rs16-15-4", h=b[0], w=b[1])),
+        ("decode-soft", lambda: check_decode("decode-soft", "ecc-22-10", h=b[0], w=b[1])),
+        ("decode-hard", lambda: check_decode("decode-hard", "ecc-22-10", h=b[0], w=b[1], method="hard")),
+        ("decode-list+median", lambda: check_decode("decode-list+median", "ecc-22-10", h=b[0], w=b[1],
+                                                    method="list+median")),
+        ("decode-soft-refit", lambda: check_decode("decode-soft-refit", "ecc-22-10", h=b[0], w=b[1], levels="refit")),
+        ("decode-hard-refit-uint16", lambda: check_decode("decode-hard-refit-uint16", "gray-10", h=b[0], w=b[1],
+                                                          dtype=np.uint16, method="hard", levels="refit")),
+        ("decode-soft-inverse-nocheck", lambda: check_decode("decode-soft-inverse-nocheck", "gray-10", h=b[0], w=b[1],
+                                                             inverse=True, spatial_check=False)),
+        ("staging", lambda: check_staging("staging", "ecc-22-10", h=b[0], w=b[1])),
+        ("runtime-pipeline", lambda: check_runtime_pipeline("runtime-pipeline")),
+    ]
+    only = [a for a in sys.argv[1:] if not a.startswith("--")]
+    for name, fn in checks:
+        if only and name not in only:
+            continue
+        t0 = time.perf_counter()
+        try:
+            fn()
+        except Exception:
+            emit(name, False, traceback.format_exc()[-1500:])
+        print(json.dumps({"timing": name, "seconds": round(time.perf_counter() - t0, 2)}), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
