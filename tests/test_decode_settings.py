@@ -47,9 +47,14 @@ def test_profile_maps_every_field(tmp_path):
 
 def test_auto_backend_falls_back_with_a_log_line(caplog, monkeypatch):
     monkeypatch.setattr(backends, "available", lambda name: name == "cpu")
+    monkeypatch.setattr(backends, "_FELL_BACK", [])
     with caplog.at_level(logging.INFO, logger="edge.decode"):
         assert backends.resolve("auto") == "cpu"
     assert "no CUDA device" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="edge.decode"):
+        assert backends.resolve("auto") == "cpu"
+    assert "no CUDA device" not in caplog.text, "the fallback is said once per process"
     assert backends.resolve("cpu") == "cpu"
     with pytest.raises(ValueError, match="backend"):
         backends.resolve("gpu")

@@ -32,6 +32,8 @@ log = logging.getLogger("edge.decode")
 #: normalised: x**2 units; hard: Hamming units).  Shared by every backend.
 Q_SCALE = {0: 256.0, 1: 16384.0, 2: 1.0}
 
+_FELL_BACK: list[bool] = []  # "auto" has said once that it decodes on the CPU
+
 #: backend name -> module (imported on first use: a backend's dependencies stay optional).
 _MODULES = {"cpu": "edge.decode.backends.cpu", "cuda": "edge.decode.backends.cuda"}
 
@@ -56,7 +58,9 @@ def resolve(name: str) -> str:
         return name
     if available("cuda"):
         return "cuda"
-    log.info("decoder backend auto: no CUDA device, decoding on the CPU")
+    if not _FELL_BACK:  # one line per process, not one per stack
+        _FELL_BACK.append(True)
+        log.info("decoder backend auto: no CUDA device, decoding on the CPU")
     return "cpu"
 
 
