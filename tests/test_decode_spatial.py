@@ -7,7 +7,8 @@ import pytest
 
 from edge.codes import get_code
 from edge.decode import decode
-from edge.decode.levels import decode_refined, initial_levels, refine_levels
+from edge.decode import decode_refined
+from edge.decode.levels import initial_levels, refine_levels
 from edge.decode.spatial import confidence_median, order_prior, spatial_support
 
 
@@ -198,21 +199,28 @@ def test_spatial_support_equals_sorted_median_reference():
             np.testing.assert_array_equal(got, ref, err_msg=f"trial {trial} {window} {min_votes} {tol}")
 
 
-def test_decode_levels_option():
-    """decode(levels="refit") is decode_refined; bad values and inverse frames are refused."""
+def test_decode_levels_refit_beats_calibration_frames_that_are_off():
+    """decode(levels="refit") against ground truth: where the white / black frames misstate a
+    pixel's levels (a dim white frame, a bright black frame, as with a drifting source), the
+    levels refitted from the code frames decode more pixels right than the calibration levels;
+    bad values and inverse frames are refused."""
     code = get_code("ecc-22-10")
     rng = np.random.default_rng(4)
-    h, w = 8, 40
+    h, w = 16, 64
     cols = rng.integers(0, code.size, (h, w))
+    on, off, sigma = 0.30, 0.20, 0.02
     x = np.moveaxis(code.codebook[cols].astype(np.float32), -1, 0)
-    frames = (0.2 + 0.1 * x + 0.02 * rng.standard_normal(x.shape)).clip(0).astype(np.float32)
-    white = (0.3 + 0.02 * rng.standard_normal((h, w))).astype(np.float32)
-    black = (0.2 + 0.02 * rng.standard_normal((h, w))).astype(np.float32)
-    kw = dict(sigma_r=0.02, sigma_s=0.0, min_contrast=0.0, min_confidence=0.0)
-    a = decode(frames, white, black, code, levels="refit", **kw)
-    b = decode_refined(frames, white, black, code, **kw)
-    np.testing.assert_array_equal(a.column, b.column)
-    np.testing.assert_array_equal(a.confidence, b.confidence)
+    frames = (off + (on - off) * x + sigma * rng.standard_normal(x.shape)).clip(0).astype(np.float32)
+    white = np.full((h, w), on - 0.04, np.float32)  # both calibration frames off by 40 % of the contrast
+    black = np.full((h, w), off + 0.04, np.float32)
+    kw = dict(sigma_r=sigma, sigma_s=0.0, min_contrast=0.0, min_confidence=0.0, spatial_check=False)
+    cal = decode(frames, white, black, code, **kw)
+    fit = decode(frames, white, black, code, levels="refit", **kw)
+    right_cal = (cal.column == cols).mean()
+    right_fit = (fit.column == cols).mean()
+    assert right_fit >= REFIT_RIGHT and right_cal <= CAL_RIGHT, (right_fit, right_cal)
+    # the refit is what the confidence sees too: the right columns are more confident
+    assert np.median(fit.confidence) > np.median(cal.confidence)
     with pytest.raises(ValueError, match="levels"):
         decode(frames, white, black, code, levels="fit")
     with pytest.raises(ValueError, match="inverse"):

@@ -34,7 +34,7 @@ def reference_decoder(cap: Capture, code: Code, method: str, band: tuple[int, in
         from edge.decode.levels import initial_levels, refine_levels
 
         scale = np.float32(1.0 / ((1 << cap.bits) - 1))
-        fn, wn, bn = initial_levels(f * scale, white * scale, black * scale)
+        wn, bn = initial_levels(f * scale, white * scale, black * scale)
         col, _ = _brute(f * scale, wn, bn, code, method, band, cap.stripe, 1e-6)
         wn, bn = refine_levels(f * scale, wn, bn, code, col)
         return _brute(f * scale, wn, bn, code, method, band, cap.stripe, 1e-6)

@@ -133,7 +133,7 @@ def reorder(code: Code, order: str) -> Code:
 def edge_decoder() -> Decoder:
     """Decoder function backed by `edge.decode.decode` (ImportError if it is not available)."""
     from ..decode import decode  # noqa: PLC0415 - optional peer module
-    from ..decode.levels import decode_refined  # noqa: PLC0415
+    from ..decode import decode_refined  # noqa: PLC0415
 
     params = set(inspect.signature(decode).parameters)
 
