@@ -10,6 +10,7 @@ from edge.decode import decode
 from edge.decode import decode_refined
 from edge.decode.levels import initial_levels, refine_levels
 from edge.decode.spatial import confidence_median, order_prior, spatial_support
+from edge.decode.synthetic import make_capture
 
 
 def _ramp_row(width: int, offset: int = 100) -> tuple[np.ndarray, np.ndarray]:
@@ -200,28 +201,55 @@ def test_spatial_support_equals_sorted_median_reference():
 
 
 def test_decode_levels_refit_beats_calibration_frames_that_are_off():
-    """decode(levels="refit") against ground truth: where the white / black frames misstate a
-    pixel's levels (a dim white frame, a bright black frame, as with a drifting source), the
-    levels refitted from the code frames decode more pixels right than the calibration levels;
-    bad values and inverse frames are refused."""
-    code = get_code("ecc-22-10")
+    """decode(levels="refit") against ground truth: where the white frame misstates the pixels'
+    "on" level (the source dimmed by half the contrast after calibration), the levels refitted
+    from the code frames decode far more pixels right than the calibration levels; bad values
+    and inverse frames are refused."""
+    code = get_code("gray-10")
     rng = np.random.default_rng(4)
     h, w = 16, 64
     cols = rng.integers(0, code.size, (h, w))
     on, off, sigma = 0.30, 0.20, 0.02
     x = np.moveaxis(code.codebook[cols].astype(np.float32), -1, 0)
     frames = (off + (on - off) * x + sigma * rng.standard_normal(x.shape)).clip(0).astype(np.float32)
-    white = np.full((h, w), on - 0.04, np.float32)  # both calibration frames off by 40 % of the contrast
-    black = np.full((h, w), off + 0.04, np.float32)
+    white = np.full((h, w), on - 0.05, np.float32)
+    black = np.full((h, w), off, np.float32)
     kw = dict(sigma_r=sigma, sigma_s=0.0, min_contrast=0.0, min_confidence=0.0, spatial_check=False)
-    cal = decode(frames, white, black, code, **kw)
+    right_cal = (decode(frames, white, black, code, **kw).column == cols).mean()
     fit = decode(frames, white, black, code, levels="refit", **kw)
-    right_cal = (cal.column == cols).mean()
     right_fit = (fit.column == cols).mean()
-    assert right_fit >= REFIT_RIGHT and right_cal <= CAL_RIGHT, (right_fit, right_cal)
-    # the refit is what the confidence sees too: the right columns are more confident
-    assert np.median(fit.confidence) > np.median(cal.confidence)
+    # measured: 0.56 with the calibration levels, 0.85 refitted
+    assert right_cal < 0.7 and right_fit > 0.75 and right_fit > right_cal + 0.15, (right_cal, right_fit)
     with pytest.raises(ValueError, match="levels"):
         decode(frames, white, black, code, levels="fit")
     with pytest.raises(ValueError, match="inverse"):
         decode(frames, white, black, code, levels="refit", inverse=frames)
+
+
+def _striped_plane(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A fronto-parallel plane seen through a stripe-4 Gray-code pattern (projector column
+    x + 200, codebook row (x + 200) // 4) with a dark 20-pixel band; returns (decoded column,
+    true column, dark-band mask)."""
+    code = get_code("gray-10")
+    rng = np.random.default_rng(0)
+    h, w, stripe = 24, 192, 4
+    x = np.broadcast_to(np.arange(w)[None, :], (h, w))
+    cols = (x + 200) // stripe
+    dark = (x >= 90) & (x < 110)
+    cap = make_capture(code, cols, rng=rng, albedo=np.where(dark, 0.03, 0.6), ambient=0.05, sigma_r=0.01,
+                       sigma_s=0.03)
+    out = decode(cap.frames, cap.white, cap.black, code, method=method, stripe=stripe)
+    return out.column, cols, dark
+
+
+def test_order_prior_and_median_in_decode_take_the_stripe_width():
+    """decode() gives the spatial methods the stripe width: their disparities are projector pixels
+    (x - row * stripe).  With stripe 1 assumed, the anchors either side of the dark band look like
+    two surfaces and the median's prediction is off by (x - x_voter) * 3/4 rows; measured on this
+    plane with stripe 1 assumed: list 59 right / 152 wrong, median 47 right, list+median 49 right
+    of the 480 dark pixels."""
+    for method, min_right, max_wrong in (("list", 110, 40), ("median", 75, 200), ("list+median", 95, 190)):
+        column, cols, dark = _striped_plane(method)
+        right = int((column[dark] == cols[dark]).sum())
+        wrong = int(((column[dark] >= 0) & (column[dark] != cols[dark])).sum())
+        assert right >= min_right and wrong <= max_wrong, (method, right, wrong)
