@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 from edge.codes import get_code
-from edge.decode import decode
-from edge.decode import decode_refined
+from edge.decode import decode, decode_refined
 from edge.decode.levels import initial_levels, refine_levels
 from edge.decode.spatial import confidence_median, order_prior, spatial_support
 from edge.decode.synthetic import make_capture
