@@ -7,18 +7,14 @@ table structure (``tables``, a NamedTuple of arrays built once per code by `edge
 and a `Band` (``band``), then the outputs: ``out_col`` (H, W, 3) int32, ``out_dist`` (H, W, 3)
 float32, ``out_conf`` (H, W) float32 and, for the soft paths, ``out_stats`` (H, k) int64 per row.
 
-=================  ======================  =============================  ====================
-module             kernel                  what                           tables
-=================  ======================  =============================  ====================
-`cost`             `log_levels`            per-sample costs, quantisation  (`CostModel`)
-`top3`             (helpers)               top-3 keys, candidate band     (`Band`)
-`scalar`           `soft_binary`           per-pixel branch-and-bound     `ScalarTables`
-`nary`             `soft_nary`             N-ary brute force              `NaryTables`
-`lanes`            `soft_lanes`            weight classes, 64 lanes       `LaneTables`
-`band_scan`        `soft_band`             scan of a disparity band       `ScanTables`
-`band_fold`        `soft_band_fold`        folded Walsh-Hadamard blocks   `FoldTables`
-`hard`             `hard_lean`             hard decisions, coset leader   `HardTables`
-=================  ======================  =============================  ====================
+* `cost`: per-sample costs, quantisation, per-pixel / 64-lane LLRs, `log_levels` (`CostModel`);
+* `top3`: top-3 keys, the output writer, a pixel's candidate band (`Band`);
+* `scalar`: `soft_binary`, per-pixel branch-and-bound, any binary code (`ScalarTables`);
+* `nary`: `soft_nary`, brute force for q-ary codes (`NaryTables`);
+* `lanes`: `soft_lanes`, weight-class search 64 pixels at a time, column-linear codes (`LaneTables`);
+* `band_scan`: `soft_band`, scan of a disparity band, any binary code (`ScanTables`);
+* `band_fold`: `soft_band_fold`, folded Walsh-Hadamard blocks over a band, column-linear (`FoldTables`);
+* `hard`: `hard_lean`, hard decisions + coset-leader table, binary linear codes (`HardTables`).
 
 All soft paths return the same arrays bit for bit (the same quantised costs, keys and ties;
 tests/test_decode.py compares them with `soft_binary` and with a brute-force reference).
