@@ -6,7 +6,7 @@ import numpy as np
 from numba import njit, prange
 
 from .cost import METRIC_HARD, METRIC_ML, Y_CLIP
-from .top3 import IDX_BITS, NO_KEY, _band, _insert, _write, _write_none
+from .top3 import IDX_BITS, NO_KEY, _insert, _pixel_start, _write, _write_none
 
 
 @njit(cache=True, parallel=True)
@@ -27,10 +27,8 @@ def soft_nary(frames, inverse, has_inv, white, black, scale, model, tables, band
         e = np.zeros((n, q), np.float64)
         eq = np.zeros((n, q), np.int64)
         for xx in range(width):
-            a = white[yy, xx] * scale
-            b = black[yy, xx] * scale
-            lo, hi = _band(xx, use_band, min_d, max_d, stripe, ncols)
-            if not (a > b) or lo > hi:
+            a, b, lo, hi, ok = _pixel_start(white, black, yy, xx, scale, use_band, min_d, max_d, stripe, ncols)
+            if not ok:
                 _write_none(out_col, out_dist, out_conf, yy, xx)
                 continue
             d = a - b

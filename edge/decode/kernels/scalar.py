@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 from .cost import _U0, _U1, _pixel_llr
-from .top3 import IDX_BITS, NO_KEY, _band, _insert, _write, _write_none, sort_small
+from .top3 import IDX_BITS, NO_KEY, _insert, _pixel_start, _write, _write_none, sort_small
 
 
 _U63 = np.uint64(63)
@@ -102,10 +102,8 @@ def soft_binary(frames, inverse, has_inv, white, black, scale, model, tables, ba
         brute_pixels = 0
         evaluated = 0
         for xx in range(width):
-            a = white[yy, xx] * scale
-            b = black[yy, xx] * scale
-            lo, hi = _band(xx, use_band, min_d, max_d, stripe, ncols)
-            if not (a > b) or lo > hi:
+            a, b, lo, hi, ok = _pixel_start(white, black, yy, xx, scale, use_band, min_d, max_d, stripe, ncols)
+            if not ok:
                 _write_none(out_col, out_dist, out_conf, yy, xx)
                 continue
             h, dmin = _pixel_llr(frames, inverse, has_inv, yy, xx, n, scale, a, b, metric,

@@ -66,6 +66,16 @@ def _band(x, use_band, min_d, max_d, stripe, ncols):
 
 
 @njit(cache=True, inline="always")
+def _pixel_start(white, black, yy, xx, scale, use_band, min_d, max_d, stripe, ncols):
+    """(a, b, lo, hi, ok) of pixel (yy, xx): normalised white / black levels, candidate columns
+    [lo, hi] and whether it can be decoded (white > black and a non-empty band)."""
+    a = white[yy, xx] * scale
+    b = black[yy, xx] * scale
+    lo, hi = _band(xx, use_band, min_d, max_d, stripe, ncols)
+    return a, b, lo, hi, (a > b) and lo <= hi
+
+
+@njit(cache=True, inline="always")
 def sort_small(a, m):
     for i in range(1, m):
         t = a[i]
