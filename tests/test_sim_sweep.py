@@ -23,10 +23,7 @@ def test_reorder_keeps_the_encoder_and_changes_only_the_column_order():
 
 
 def test_tiny_sweep_writes_plots_table_and_claims(tmp_path):
-    try:
-        decoder = edge_decoder()
-    except ImportError:
-        pytest.skip("edge.decode not available")
+    decoder = edge_decoder()  # edge.decode is part of the package: a broken install fails here
     cfg = SweepConfig(width=64, height=48, seeds=(0,), ratios=(0.05, 2.0), experiments=("soft_quant",))
     rows = run_sweep(cfg, decoder, progress=False)
     assert len(rows) == 2 * 4 * 2

@@ -2,9 +2,9 @@
 filter; EDC error maps; loaders for real capture layouts."""
 
 from .check import check, check_capture, contrast_error_map, error_map
-from .decoder import DEFAULTS, METHODS, Decoded, decode, decode_capture
+from .decoder import DEFAULTS, METHODS, Decoded, decode, decode_capture, decode_refined
 from .layouts import Capture, LayoutCapture, decode_axes, load_manifest, load_opencv_graycode
-from .levels import decode_refined, refine_levels
+from .levels import refine_levels
 from .settings import DEFAULT_SETTINGS, DecodeSettings
 from .spatial import confidence_median, order_prior, spatial_outliers
 

@@ -22,6 +22,17 @@ neighbourhood (at least 3 voters; `spatial.spatial_support`, columns unchanged).
 ``spatial_check=False`` for the plain confidence + contrast mask.  "list" and "median" use the
 validity rules of `spatial.order_prior` / `spatial.confidence_median`.  Defaults: `DEFAULTS`
 (chosen on the real OpenCV Gray-code capture, see tests/test_decode_real.py).
+
+`decode` is a composition of five stages, each driven by the one `DecodeSettings`:
+
+1. inputs (`edge.decode.inputs.validate`): the capture -> `Stack` (raw frames, ``scale``);
+2. levels (`edge.decode.levels.estimate_levels`): "calibration" keeps white / black, "refit"
+   refits them from a first candidate search (Stack -> Stack);
+3. candidate search (`edge.decode.search.search_candidates`, on ``settings.backend``): Stack ->
+   `Candidates` (top-3 rows, distances, confidence, stats);
+4. spatial methods (`edge.decode.validity.eligibility`, then `edge.decode.spatial.spatial_stage`):
+   eligible pixels, the support test or the order prior / median filter, with the stripe width;
+5. validity rule (`edge.decode.validity.valid_mask`): -> column and valid mask.
 """
 
 from __future__ import annotations
@@ -33,15 +44,16 @@ import numpy as np
 
 from ..capture import CodedCapture
 from ..codes import Code
-from . import kernels
+from .backends import Q_SCALE
+from .backends import get as get_backend
 from .inputs import Stack, validate
-from .backends import Q_SCALE, get as get_backend
-from .settings import DEFAULT_SETTINGS, LEVELS, METHODS, METRIC_NAMES, DecodeSettings
-from .spatial import confidence_median, order_prior, spatial_support
-from .validity import eligible_column, final_mask
+from .levels import estimate_levels
+from .search import METRICS, band_args, search_candidates
+from .settings import DEFAULT_SETTINGS, METHODS, DecodeSettings
+from .spatial import spatial_stage
+from .validity import eligibility, valid_mask
 
-METRICS = {"ml": kernels.METRIC_ML, "normalized": kernels.METRIC_NORMALIZED}
-assert tuple(METRICS) == METRIC_NAMES
+__all__ = ["DEFAULTS", "METHODS", "METRICS", "Q_SCALE", "Decoded", "decode", "decode_refined"]
 
 #: Documented defaults of `decode`'s thresholds and noise model (`DEFAULT_SETTINGS`, as a dict;
 #: chosen on the real OpenCV Gray-code capture, see tests/test_decode_real.py).
@@ -74,20 +86,6 @@ class Decoded:
     stats: dict = field(default_factory=dict)
 
 
-def _band_args(width: int, min_disparity: float | None, max_disparity: float | None) -> tuple[bool, int, int]:
-    if min_disparity is None and max_disparity is None:
-        return False, 0, 0
-    for name, v in (("min_disparity", min_disparity), ("max_disparity", max_disparity)):
-        if v is not None and not (isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
-                                  and np.isfinite(v) and abs(v) <= 2**30):
-            raise ValueError(f"{name}: expected a finite number of pixels (|d| <= 2**30) or None, got {v!r}")
-    lo = -(10**9) if min_disparity is None else int(np.floor(min_disparity))
-    hi = 10**9 if max_disparity is None else int(np.ceil(max_disparity))
-    if lo > hi:
-        raise ValueError(f"disparity band: expected min_disparity <= max_disparity, got {min_disparity} > {max_disparity}")
-    return True, lo, hi
-
-
 def decode(
     frames: np.ndarray,
     white: np.ndarray,
@@ -114,69 +112,64 @@ def decode(
 
     settings: a `DecodeSettings` (default `DEFAULT_SETTINGS`); ``options`` are any of its fields
     (``method="list"``, ``sigma_r=0.02``, ...) applied on top, unknown names raise one
-    ValueError.  ``levels="refit"`` (`edge.decode.levels.decode_refined`) decodes, refits each
+    ValueError.  ``levels="refit"`` (`edge.decode.levels`) searches once, refits each
     pixel's on/off levels by least squares from its own code frames plus white and black, and
-    decodes again (about twice the time; not with inverse frames).  See the module docstring for
+    searches again (about twice the time; not with inverse frames).  See the module docstring for
     methods, metrics and the valid mask.
     """
     s = (DEFAULT_SETTINGS if settings is None else settings).replace(**options)
-    method, metric, sigma_r, sigma_s = s.method, s.metric, s.sigma_r, s.sigma_s
-    min_contrast, min_confidence, t_low, t_high = s.min_contrast, s.min_confidence, s.t_low, s.t_high
-    spatial_check = s.spatial_check
     if s.backend != "cpu":  # device backends (edge.decode.backends.cuda) run levels, search and mask whole
         whole = getattr(get_backend(s.backend), "decode_whole", None)
         if whole is not None:
             return whole(frames, white, black, code, s, inverse=inverse, min_disparity=min_disparity,
                          max_disparity=max_disparity, columns=columns, stripe=stripe, bit_depth=bit_depth)
-    if s.levels == "refit":
-        if inverse is not None:
-            raise ValueError("levels: 'refit' expects no inverse frames (pattern + inverse decisions "
-                             "do not use the calibration levels), got inverse=")
-        from .levels import decode_refined  # levels builds on decode
+    return _decode(frames, white, black, code, s, inverse=inverse, min_disparity=min_disparity,
+                   max_disparity=max_disparity, columns=columns, stripe=stripe, bit_depth=bit_depth)
 
-        return decode_refined(frames, white, black, code, method=s.method, settings=s.replace(levels="calibration"),
-                              bit_depth=bit_depth, min_disparity=min_disparity,
-                              max_disparity=max_disparity, columns=columns, stripe=stripe)
-    if metric not in METRICS:
-        raise ValueError(f"metric: expected one of {', '.join(METRICS)}, got {metric!r}")
+
+def decode_refined(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code, *,
+                   iterations: int = 1, settings: DecodeSettings | None = None, inverse: np.ndarray | None = None,
+                   min_disparity: float | None = None, max_disparity: float | None = None,
+                   columns: int | None = None, stripe: int = 1, bit_depth: int | None = None,
+                   **options: Any) -> Decoded:
+    """`decode` with ``levels="refit"`` and `iterations` refits (0: `levels.initial_levels` only).
+
+    Pass 0 searches with the initial levels ("hard" for method "hard", else "soft"); each
+    refit uses the previous pass's top-1 columns (every pixel, no valid mask); the last search
+    uses the settings' method.  Other arguments as for `decode`.
+    """
+    s = (DEFAULT_SETTINGS if settings is None else settings).replace(**options).replace(levels="refit")
+    return _decode(frames, white, black, code, s, inverse=inverse, min_disparity=min_disparity,
+                   max_disparity=max_disparity, columns=columns, stripe=stripe, bit_depth=bit_depth,
+                   iterations=iterations)
+
+
+def _decode(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code, s: DecodeSettings, *,
+            inverse: np.ndarray | None, min_disparity: float | None, max_disparity: float | None,
+            columns: int | None, stripe: int, bit_depth: int | None, iterations: int = 1) -> Decoded:
+    """The stages of the module docstring, in order."""
+    if s.levels == "refit" and inverse is not None:
+        raise ValueError("levels: 'refit' expects no inverse frames (pattern + inverse decisions "
+                         "do not use the calibration levels), got inverse=")
     if stripe < 1:
         raise ValueError(f"stripe: expected >= 1, got {stripe}")
     ncols = code.size if columns is None else int(columns)
     if not 1 <= ncols <= code.size:
         raise ValueError(f"columns: expected 1..{code.size} for code {code.name!r}, got {columns}")
+    band = band_args(min_disparity, max_disparity)
     stack = validate(frames, white, black, code, inverse=inverse, bit_depth=bit_depth)
-    h, w = stack.shape
-    band = _band_args(w, min_disparity, max_disparity)
-    backend = get_backend(s.backend)
-    if method == "hard":
-        cand, dist, conf, st = backend.hard(stack, code, columns=ncols, band=band, stripe=stripe)
-    else:
-        cand, dist, conf, st = backend.search(stack, code, metric=METRICS[metric], sigma_r=sigma_r,
-                                              sigma_s=sigma_s, columns=ncols, band=band, stripe=stripe)
-    # eligible = contrast >= min_contrast & column >= 0 (contrast in float32), one fused pass
-    column0 = np.empty((h, w), np.int32)
-    eligible = np.empty((h, w), np.bool_)
-    eligible_column(cand, stack.white, stack.black, np.float32(stack.scale), np.float32(min_contrast),
-                    column0, eligible)
-    confidence = conf
-    if method in ("soft", "hard"):
-        support = spatial_support(column0, conf, eligible, t_vote=t_high) if spatial_check else eligible
-        column = np.empty((h, w), np.int32)
-        valid = np.empty((h, w), np.bool_)
-        final_mask(column0, conf, eligible, support, bool(spatial_check), np.float32(min_confidence),
-                   np.float32(t_low), column, valid)
-        return Decoded(column=column, confidence=confidence, valid=valid, candidates=cand, distances=dist,
-                       stats=st)
-    if method in ("list", "list+median"):
-        column, valid = order_prior(cand, confidence, eligible, t_high=t_high, t_low=t_low)
-    else:
-        column = column0
-    if method in ("median", "list+median"):
-        column, valid = confidence_median(column, confidence, eligible & (column >= 0), t_low=t_low,
-                                          t_high=t_high, candidates=cand)
-    column = np.where(valid, column, -1).astype(np.int32)
-    return Decoded(column=column, confidence=confidence, valid=column >= 0, candidates=cand,
-                   distances=dist, stats=st)
+    first = s.replace(method="hard" if s.method == "hard" else "soft")
+
+    def top1(st: Stack) -> np.ndarray:
+        return search_candidates(st, code, first, columns=ncols, band=band, stripe=stripe).candidates[..., 0]
+
+    stack = estimate_levels(stack, code, s.levels, top1, iterations=iterations)
+    found = search_candidates(stack, code, s, columns=ncols, band=band, stripe=stripe)
+    column0, eligible = eligibility(stack, found.candidates, s.min_contrast)
+    spatial = spatial_stage(s, found.candidates, found.confidence, column0, eligible, stripe=stripe)
+    column, valid = valid_mask(spatial, found.confidence, eligible, s)
+    return Decoded(column=column, confidence=found.confidence, valid=valid, candidates=found.candidates,
+                   distances=found.distances, stats=found.stats)
 
 
 def decode_capture(capture: CodedCapture, code: Code | None = None, *, settings=None, **overrides) -> Decoded:

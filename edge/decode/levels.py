@@ -9,33 +9,29 @@ pixel: coding cannot average it away (for ecc-63-10 at T/63 it dominates), and w
 The code frames themselves hold about n/2 samples of each level.  `refine_levels` fits, per
 pixel, ``r_i = black + (white - black) * x_i`` by least squares over the n code samples (with
 ``x_i`` the symbol of a decoded column, ``s / (q - 1)``) plus the two calibration frames (x = 1
-and x = 0).  `decode_refined` decodes once, refits the levels with the decoded columns and
-decodes again with the refitted levels (float frames, normalised).  This is the usual EM-style
-refinement of a communication receiver; it needs no extra frames.
+and x = 0).  `estimate_levels` is the decoder's level stage (``levels="refit"`` of `edge.decode.decode`):
+it takes the columns of a first candidate search, refits the levels and hands back a float32
+normalised `Stack` with the refitted white / black, which the decoder searches again.  This is
+the usual EM-style refinement of a communication receiver; it needs no extra frames.
+
+Stage interface: `Stack` in (frames (n, H, W), white / black (H, W) raw, ``scale`` to normalised
+units), `Stack` out; ``"calibration"`` returns the stack as it is, ``"refit"`` a float32 stack in
+normalised units (scale 1).  The first search is the caller's (``top1``), so this module does
+not depend on the decoder.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Callable
 
 import numpy as np
 
 from ..codes import Code
-from .decoder import Decoded, decode
-from .inputs import validate
+from .inputs import Stack, validate
 
 #: Smallest white - black contrast (normalised units) a refitted pixel keeps, so that the decoder
 #: still decodes it (the kernels need white > black).
 MIN_CONTRAST = 1e-6
-
-
-def normalised(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code, *,
-               bit_depth: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(frames (n, H, W), white (H, W), black (H, W)) as float32 in normalised units [0, 1]."""
-    stack = validate(frames, white, black, code, bit_depth=bit_depth)
-    s = np.float32(stack.scale)
-    return (stack.frames.astype(np.float32) * s, stack.white.astype(np.float32) * s,
-            stack.black.astype(np.float32) * s)
 
 
 def initial_levels(frames: np.ndarray, white: np.ndarray, black: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -86,29 +82,28 @@ def refine_levels(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code
     return (np.where(ok, w, white).astype(np.float32), np.where(ok, b, black).astype(np.float32))
 
 
-def decode_refined(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code, *,
-                   method: str = "soft", iterations: int = 1, bit_depth: int | None = None,
-                   **kwargs: Any) -> Decoded:
-    """`decode` with the levels refitted from the code frames (see the module docstring).
+def estimate_levels(stack: Stack, code: Code, levels: str, top1: Callable[[Stack], np.ndarray], *,
+                    iterations: int = 1) -> Stack:
+    """The level stage: the on / off levels the final search uses (see the module docstring).
 
-    Pass 0 decodes with `initial_levels` (method "soft"; "hard" for method "hard"); each of
-    `iterations` passes refits the levels with `refine_levels` on the previous columns and decodes
-    again; the last pass uses `method`.  Other keyword arguments go to `decode` (not ``inverse``:
-    pattern + inverse captures do not use the calibration levels for their decisions).  The frames
-    passed on are float32 normalised, so `bit_depth` applies to the input only.
+    levels: "calibration" (`stack` unchanged) or "refit": the frames as float32 normalised, the
+    `initial_levels`, then `iterations` times ``refine_levels(..., top1(current stack))``.
+    top1: (Stack) -> (H, W) int codebook rows (-1 = none), the decoder's first candidate search
+    (every pixel, no valid mask).  Not with inverse frames (they do not use the calibration
+    levels for their decisions).
     """
-    if "inverse" in kwargs:
-        raise ValueError("decode_refined: expected no inverse frames (they do not use calibration levels), got inverse=")
+    if levels == "calibration":
+        return stack
+    if levels != "refit":
+        raise ValueError(f"levels: expected 'calibration' or 'refit', got {levels!r}")
+    if stack.inverse is not None:
+        raise ValueError("levels: 'refit' expects no inverse frames (pattern + inverse decisions "
+                         "do not use the calibration levels), got inverse=")
     if iterations < 0:
         raise ValueError(f"iterations: expected >= 0, got {iterations}")
-    if kwargs.get("settings") is not None:  # the passes below decode with calibration levels
-        kwargs["settings"] = kwargs["settings"].replace(levels="calibration")
-    f, w, b = normalised(frames, white, black, code, bit_depth=bit_depth)
-    w, b = initial_levels(f, w, b)
-    first = "hard" if method == "hard" else "soft"
-    # every pass decodes all pixels; the valid mask of the last pass is the caller's
-    probe = {**kwargs, "min_contrast": 0.0, "min_confidence": 0.0}
+    s = np.float32(stack.scale)
+    f = stack.frames.astype(np.float32) * s
+    w, b = initial_levels(f, stack.white.astype(np.float32) * s, stack.black.astype(np.float32) * s)
     for _ in range(iterations):
-        out = decode(f, w, b, code, method=first, **probe)
-        w, b = refine_levels(f, w, b, code, out.candidates[..., 0])
-    return decode(f, w, b, code, method=method, **kwargs)
+        w, b = refine_levels(f, w, b, code, top1(validate(f, w, b, code)))
+    return validate(f, w, b, code)

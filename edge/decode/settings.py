@@ -27,10 +27,13 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from .backends import BACKEND_NAMES
+
+#: The one list of each choice (profiles, the CLI and the service take theirs from here; the
+#: backends from their registry, `edge.decode.backends._MODULES`).
 METHODS = ("hard", "soft", "list", "median", "list+median")
 METRIC_NAMES = ("ml", "normalized")
 LEVELS = ("calibration", "refit")
-BACKEND_NAMES = ("cpu", "cuda", "auto")
 
 
 @dataclass(frozen=True)

@@ -29,14 +29,20 @@ Disparity convention (docs/architecture.md): a pixel at camera column x decoded 
   than `tol` from the median of the valid columns in its `window` x `window` neighbourhood.
 * `spatial_support`: whether a pixel's column agrees with the median of its high-confidence
   neighbours (used by `decode`'s valid mask; columns unchanged).
+
+`spatial_stage` is stage 4 of `edge.decode.decode`: it runs the filters the settings' method asks
+for on the candidate search's output, with the pattern's stripe width.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit, prange
 
-from .kernels import _sort_small
+from .kernels import sort_small as _sort_small
+from .settings import DecodeSettings
 
 
 @njit(cache=True, inline="always")
@@ -429,3 +435,43 @@ def spatial_support(
     _support(col, np.ascontiguousarray(confidence, np.float32), np.ascontiguousarray(eligible, np.bool_),
              float(t_vote), window // 2, int(min_votes), int(tol), vcol, out)
     return out
+
+
+class Spatial(NamedTuple):
+    """Output of `spatial_stage` (all (H, W)).
+
+    column: int32 codebook rows after the method's filters (-1 = none; not yet masked).
+    support: bool `spatial_support` of the columns ("soft" / "hard" with ``spatial_check``), else None.
+    valid: bool valid mask of the filters ("list", "median", "list+median"), else None (the
+        decoder's validity rule, `edge.decode.validity.valid_mask`, decides).
+    """
+
+    column: np.ndarray
+    support: np.ndarray | None
+    valid: np.ndarray | None
+
+
+def spatial_stage(settings: DecodeSettings, candidates: np.ndarray, confidence: np.ndarray, column: np.ndarray,
+                  eligible: np.ndarray, *, stripe: int) -> Spatial:
+    """The spatial methods of ``settings.method`` on a candidate search's output.
+
+    candidates: (H, W, 3) int32 rows best-first; confidence: (H, W) float32; column: (H, W) int32
+    top-1 rows; eligible: (H, W) bool (contrast and a column, `edge.decode.validity.eligibility`);
+    stripe: projector columns per codebook row (the disparity of the filters is in projector
+    pixels).  "soft" / "hard": the support test (t_vote = t_high) if ``spatial_check``;
+    "list": `order_prior`; "median": `confidence_median` (with the candidates); "list+median":
+    both in turn.
+    """
+    method, t_low, t_high = settings.method, settings.t_low, settings.t_high
+    if method in ("soft", "hard"):
+        support = spatial_support(column, confidence, eligible, t_vote=t_high) if settings.spatial_check else None
+        return Spatial(column, support, None)
+    valid = None
+    if method in ("list", "list+median"):
+        column, valid = order_prior(candidates, confidence, eligible, t_high=t_high, t_low=t_low, stripe=stripe)
+    if method in ("median", "list+median"):
+        column, valid = confidence_median(column, confidence, eligible & (column >= 0), t_low=t_low,
+                                          t_high=t_high, candidates=candidates, stripe=stripe)
+    if valid is None:
+        raise ValueError(f"method: expected one of soft, hard, list, median, list+median, got {method!r}")
+    return Spatial(column, None, valid)

@@ -17,12 +17,19 @@ built-in linear code) the column of ``c_ref xor D`` is ``col(c_ref) ^ col(D)``, 
 decision ``h`` maps to a column and syndrome by XOR of per-position contributions
 (``col_bit``, ``syn_col``).  The nonzero codewords are grouped in weight classes
 (``cls_weight``), each D stored as its sorted positions (``dpos``) and column (``dcol``).
+
+Per-path table structures.  Each search kernel of `edge.decode.kernels` takes the tables of its
+path as one NamedTuple of arrays (``tables``): `ScalarTables`, `LaneTables`, `ScanTables`,
+`FoldTables`, `HardTables`, `NaryTables`, built once per code from `CodeTables` (its
+``scalar_tables`` ... properties, cached).  The fields are the `CodeTables` attributes of the
+same name.
 """
 
 from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -39,6 +46,87 @@ GROUP_BITS = 6
 #: columns 82 / 77 / 82 ms single-threaded; 1-3 row bits within 1 ms of each other).
 FOLD_BLOCK_BITS = 6
 FOLD_LANE_BITS = 2
+
+
+class ScalarTables(NamedTuple):
+    """`kernels.soft_binary`: packed codewords, information-set and syndrome packing, coset
+    leaders, the nonzero codewords by weight class and group-0 sublist (see `CodeTables`)."""
+
+    masks: np.ndarray
+    comp_info: np.ndarray
+    col_of_info: np.ndarray
+    comp_syn: np.ndarray
+    leader: np.ndarray
+    has_leader: bool
+    linear: bool
+    diff_masks: np.ndarray
+    diff_info: np.ndarray
+    class_start: np.ndarray
+    sub_start: np.ndarray
+    sub_p0: np.ndarray
+    class_sub: np.ndarray
+
+
+class LaneTables(NamedTuple):
+    """`kernels.soft_lanes`: per-position syndrome / column contributions, coset leaders and
+    their columns, the nonzero codewords by weight class as positions and columns."""
+
+    masks: np.ndarray
+    syn_col: np.ndarray
+    col_bit: np.ndarray
+    leader: np.ndarray
+    leader_col: np.ndarray
+    has_leader: bool
+    cls_weight: np.ndarray
+    cls_start: np.ndarray
+    cls_pstart: np.ndarray
+    dpos: np.ndarray
+    dcol: np.ndarray
+
+
+class ScanTables(NamedTuple):
+    """`kernels.soft_band`: the codebook transposed as 0 / -1 masks."""
+
+    masks_t: np.ndarray
+
+
+class FoldTables(NamedTuple):
+    """`kernels.soft_band_fold`: block / row bits and sign tables of the folded transform, and
+    masks_t for the exact 64-bit redo."""
+
+    fold_b: int
+    fold_v: int
+    fold_sgn: np.ndarray
+    fold_row: np.ndarray
+    fold_usign: np.ndarray
+    masks_t: np.ndarray
+
+
+class HardTables(NamedTuple):
+    """`kernels.hard_lean`: per-position syndrome / information bits, coset leaders' information
+    bits and weights, the column of each information pattern, d_min."""
+
+    syn_col: np.ndarray
+    info_bit: np.ndarray
+    leader_info: np.ndarray
+    leader_wt: np.ndarray
+    col_of_info: np.ndarray
+    d_min: int
+
+
+class NaryTables(NamedTuple):
+    """`kernels.soft_nary`: alphabet size and the (size, n) uint8 codebook."""
+
+    q: int
+    codebook: np.ndarray
+
+
+def _path_tables(cls: type, doc: str) -> functools.cached_property:
+    """A cached `CodeTables` property: the NamedTuple `cls` of the attributes named like its fields."""
+    def build(self: "CodeTables"):
+        return cls(*(getattr(self, f) for f in cls._fields))
+    build.__doc__ = doc
+    return functools.cached_property(build)
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,6 +214,13 @@ class CodeTables:
     @property
     def has_leader(self) -> bool:
         return self.leader.size > 0
+
+    scalar_tables = _path_tables(ScalarTables, "Tables of `kernels.soft_binary` (any binary code).")
+    lane_tables = _path_tables(LaneTables, "Tables of `kernels.soft_lanes` (column-linear codes).")
+    scan_tables = _path_tables(ScanTables, "Tables of `kernels.soft_band` (any binary code).")
+    fold_tables = _path_tables(FoldTables, "Tables of `kernels.soft_band_fold` (column-linear codes).")
+    hard_tables = _path_tables(HardTables, "Tables of `kernels.hard_lean` (binary linear codes with coset leaders).")
+    nary_tables = _path_tables(NaryTables, "Tables of `kernels.soft_nary` (any code).")
 
 
 def pack_masks(codebook: np.ndarray) -> np.ndarray:

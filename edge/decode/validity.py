@@ -1,4 +1,10 @@
-"""Fused per-pixel passes of `decode`'s valid mask (numba, one pass each instead of a chain of
+"""Stages 3 and 5 of `edge.decode.decode`: eligibility and the validity rule.
+
+`eligibility`: (H, W) int32 top-1 column and (H, W) bool eligible = contrast >= min_contrast and
+a column.  `valid_mask`: the valid mask of the settings (see `edge.decode.decoder`) from the
+spatial stage's output.
+
+Fused per-pixel passes of `decode`'s valid mask (numba, one pass each instead of a chain of
 whole-image numpy temporaries).
 
 Thresholds are compared in float32, as numpy compares a float32 array with a Python float
@@ -11,6 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit, prange
+
+from .inputs import Stack
+from .settings import DecodeSettings
+from .spatial import Spatial
 
 
 @njit(cache=True, parallel=True)
@@ -42,3 +52,34 @@ def final_mask(column, conf, eligible, support, use_support, min_confidence, t_l
             ok = ok & eligible[yy, xx]
             out_valid[yy, xx] = ok
             out_col[yy, xx] = column[yy, xx] if ok else np.int32(-1)
+
+
+def eligibility(stack: Stack, candidates: np.ndarray, min_contrast: float) -> tuple[np.ndarray, np.ndarray]:
+    """(column (H, W) int32 = candidates[..., 0], eligible (H, W) bool): contrast
+    ``(white - black) * scale >= min_contrast`` (normalised units, float32) and a column."""
+    h, w = stack.shape
+    column = np.empty((h, w), np.int32)
+    eligible = np.empty((h, w), np.bool_)
+    eligible_column(candidates, stack.white, stack.black, np.float32(stack.scale), np.float32(min_contrast),
+                    column, eligible)
+    return column, eligible
+
+
+def valid_mask(spatial: Spatial, confidence: np.ndarray, eligible: np.ndarray,
+               settings: DecodeSettings) -> tuple[np.ndarray, np.ndarray]:
+    """The validity rule: (column (H, W) int32, -1 where invalid; valid (H, W) bool).
+
+    Where the spatial stage decided validity ("list" / "median" filters) its mask is kept;
+    otherwise ``eligible & (confidence >= min_confidence | (spatial_check & confidence >= t_low
+    & support))``.
+    """
+    if spatial.valid is not None:
+        column = np.where(spatial.valid, spatial.column, -1).astype(np.int32)
+        return column, column >= 0
+    h, w = spatial.column.shape
+    column = np.empty((h, w), np.int32)
+    valid = np.empty((h, w), np.bool_)
+    use_support = spatial.support is not None
+    final_mask(spatial.column, confidence, eligible, spatial.support if use_support else eligible, use_support,
+               np.float32(settings.min_confidence), np.float32(settings.t_low), column, valid)
+    return column, valid

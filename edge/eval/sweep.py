@@ -69,7 +69,7 @@ from .report import markdown_table, pyplot, save_figure
 Decoder = Callable[[Capture, Code, DecodeSettings, tuple[int, int]], tuple[np.ndarray, np.ndarray]]
 
 #: How `edge_decoder` is described in reports.
-DECODER_NAME = "edge.decode.decode (levels=refined: edge.decode.levels.decode_refined)"
+DECODER_NAME = "edge.decode.decode (levels=refined: edge.decode.decode_refined)"
 #: Hand-written findings in an output folder, inserted into its README.md by `write_report` callers.
 FINDINGS_FILE = "findings.md"
 

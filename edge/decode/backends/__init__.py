@@ -22,8 +22,6 @@ import importlib
 import logging
 from types import ModuleType
 
-from ..settings import BACKEND_NAMES
-
 __all__ = ["BACKEND_NAMES", "Q_SCALE", "available", "get", "resolve"]
 
 log = logging.getLogger("edge.decode")
@@ -36,6 +34,9 @@ _FELL_BACK: list[bool] = []  # "auto" has said once that it decodes on the CPU
 
 #: backend name -> module (imported on first use: a backend's dependencies stay optional).
 _MODULES = {"cpu": "edge.decode.backends.cpu", "cuda": "edge.decode.backends.cuda"}
+#: The names `DecodeSettings.backend` accepts (`edge.decode.settings.BACKEND_NAMES`): every
+#: registered backend, and "auto".
+BACKEND_NAMES = (*_MODULES, "auto")
 
 
 def available(name: str) -> bool:

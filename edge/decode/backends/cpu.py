@@ -1,4 +1,4 @@
-"""The CPU backend: numba kernels (`edge.decode.kernels`) over the code tables (`edge.decode.tables`).
+"""The CPU backend: numba kernels (`edge.decode.kernels`) over the per-path code tables (`edge.decode.tables`).
 
 Implements the backend seam of `edge.decode.backends` (``search``, ``hard``).
 """
@@ -20,7 +20,6 @@ from . import Q_SCALE
 #: crossover measured with tools/bench_decode.py's input (ecc-22-10, 600 x 700): scan 135 / 203 /
 #: 271 ms CPU for 64 / 128 / 192 columns, lane search 272 / 224 / 217 ms.
 BAND_BRUTE_MAX = 160
-
 
 
 def _band_columns(band: tuple[bool, int, int], stripe: int) -> int:
@@ -74,7 +73,7 @@ def search(
         raise ValueError(f"path: {path!r} needs min_disparity / max_disparity")
     if path == "lanes" and not tb.column_linear:
         raise ValueError(f"path: 'lanes' needs a column-linear binary code, got {code.name!r}")
-    args = (stack.frames, inv, has_inv, stack.white, stack.black, stack.scale, metric, sr2, ss2, q_scale)
+    pixels = (stack.frames, inv, has_inv, stack.white, stack.black, stack.scale)
     t0 = time.perf_counter()
     # integer frames under the ML metric: the per-pixel variance logs from a table over the raw
     # levels (uint16: only where the image has more pixels than levels)
@@ -84,38 +83,30 @@ def search(
             levels = 256
         elif stack.frames.dtype == np.uint16 and h * w >= 65536:
             levels = 65536
-    ltab = kernels.log_levels(levels, stack.scale, sr2, ss2)
+    model = kernels.CostModel(metric, sr2, ss2, q_scale, kernels.log_levels(levels, stack.scale, sr2, ss2))
+    bnd = kernels.Band(int(columns), bool(use_band), int(min_d), int(max_d), int(stripe))
     if code.q != 2:
-        kernels.soft_nary(*args, code.q, tb.codebook, columns, use_band, min_d, max_d, stripe,
-                          cand, dist, conf)
+        kernels.soft_nary(*pixels, model, tb.nary_tables, bnd, cand, dist, conf)
         st = {"path": "nary", "brute_pixels": h * w, "evaluated": -1}
     elif path == "band":
         stats = np.zeros((h, 3), np.int64)
-        kernels.soft_band_fold(*args, ltab, tb.fold_b, tb.fold_v, tb.fold_sgn, tb.fold_row, tb.fold_usign,
-                               tb.masks_t, columns, min_d, max_d, stripe, cand, dist, conf, stats)
+        kernels.soft_band_fold(*pixels, model, tb.fold_tables, bnd, cand, dist, conf, stats)
         st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum()),
               "wide_key_pixels": int(stats[:, 2].sum())}
     elif path == "band-scan":
         stats = np.zeros((h, 2), np.int64)
-        kernels.soft_band(*args, ltab, tb.masks_t, columns, min_d, max_d, stripe, cand, dist, conf, stats)
+        kernels.soft_band(*pixels, model, tb.scan_tables, bnd, cand, dist, conf, stats)
         st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
     elif path == "lanes":
         stats = np.zeros((h, 5), np.int64)
-        kernels.soft_lanes(*args, ltab, tb.masks, tb.syn_col, tb.col_bit, tb.leader, tb.leader_col,
-                           tb.has_leader, tb.cls_weight, tb.cls_start, tb.cls_pstart, tb.dpos,
-                           tb.dcol, columns, use_band, min_d, max_d, stripe, cand, dist, conf, stats)
+        kernels.soft_lanes(*pixels, model, tb.lane_tables, bnd, cand, dist, conf, stats)
         tot = stats.sum(axis=0)
         st = {"path": path, "brute_pixels": 0, "evaluated": int(tot[1]),
               "second_class_pixels": int(tot[0]), "second_class_blocks": int(tot[2]),
               "blocks": int(tot[3]), "pending_blocks": int(tot[4])}
     elif path == "scalar":
         stats = np.zeros((h, 2), np.int64)
-        kernels.soft_binary(
-            *args, tb.masks, tb.comp_info, tb.col_of_info, tb.comp_syn,
-            tb.leader, tb.has_leader, tb.linear, tb.diff_masks, tb.diff_info, tb.class_start,
-            tb.sub_start, tb.sub_p0, tb.class_sub, columns, use_band, min_d, max_d, stripe,
-            BAND_BRUTE_MAX, cand, dist, conf, stats,
-        )
+        kernels.soft_binary(*pixels, model, tb.scalar_tables, bnd, BAND_BRUTE_MAX, cand, dist, conf, stats)
         st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
     else:
         raise ValueError(f"path: expected 'band', 'band-scan', 'lanes' or 'scalar', got {path!r}")
@@ -134,11 +125,9 @@ def hard(stack: Stack, code: Code, *, columns: int, band: tuple[bool, int, int],
         inv = stack.inverse if stack.inverse is not None else stack.frames[:1, :1, :1]
         use_band, min_d, max_d = band
         t0 = time.perf_counter()
-        kernels.hard_lean(
-            stack.frames, inv, stack.inverse is not None, stack.white, stack.black, tb.syn_col,
-            tb.info_bit, tb.leader_info, tb.leader_wt, tb.col_of_info, code.d_min, columns,
-            use_band, min_d, max_d, stripe, cand, dist, conf,
-        )
+        kernels.hard_lean(stack.frames, inv, stack.inverse is not None, stack.white, stack.black, tb.hard_tables,
+                          kernels.Band(int(columns), bool(use_band), int(min_d), int(max_d), int(stripe)),
+                          cand, dist, conf)
         return cand, dist, conf, {"path": "syndrome", "seconds": time.perf_counter() - t0}
     cand, dist, conf, st = search(stack, code, metric=kernels.METRIC_HARD, sigma_r=1.0, sigma_s=0.0,
                                   columns=columns, band=band, stripe=stripe)

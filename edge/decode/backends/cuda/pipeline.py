@@ -6,7 +6,7 @@ argument checks, one upload, and one download of the outputs.  Methods "soft" / 
 their valid mask on the device (`validity`); "list" / "median" / "list+median" take the
 device's candidates, confidence and eligibility to the host filters of `edge.decode.spatial`
 (sequential along rows, as the CPU backend does).  ``levels="refit"`` follows
-`edge.decode.levels.decode_refined` (one refit iteration) with `refit`'s kernels.
+`edge.decode.decode_refined` (one refit iteration) with `refit`'s kernels.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ def _search(ds: DeviceStack, code: Code, method: str, s: DecodeSettings, metric:
 
 def refit_stack(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *, columns: int,
                 band: tuple[bool, int, int], stripe: int, stream: Any = 0, buffers: dict | None = None) -> DeviceStack:
-    """`levels.decode_refined`'s levels on the device: normalise, `initial_levels`, one decode
+    """`edge.decode.decode_refined`'s levels on the device: normalise, `initial_levels`, one decode
     ("hard" for method "hard", else "soft"), `refine_levels`.  Returns the float32 stack with
     the refitted levels (scale 1) that the final decode uses."""
     if ds.has_inv:
