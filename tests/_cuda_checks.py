@@ -159,11 +159,15 @@ def check_refit_kernels(name, code_name, *, h, w):
 
     from edge.decode import levels
     from edge.decode.backends.cuda import refit as rk
+    from edge.decode.inputs import validate
     from edge.decode.backends.cuda.device import device_tables
 
     code = get_code(code_name)
     cap, white, black = capture(code, h, w, dtype=np.uint16, dark=0.2)
-    f, wn, bn = levels.normalised(cap.frames, white, black, code)
+    st = validate(cap.frames, white, black, code)  # normalised float32, as the level stage does
+    s32 = np.float32(st.scale)
+    f, wn, bn = (st.frames.astype(np.float32) * s32, st.white.astype(np.float32) * s32,
+                 st.black.astype(np.float32) * s32)
     wi, bi = levels.initial_levels(f, wn, bn)
     rng = np.random.default_rng(3)
     col = rng.integers(-1, code.size, (h, w)).astype(np.int32)

@@ -260,11 +260,12 @@ def test_bad_inputs():
         scan.update(np.zeros((17, 8, 10), np.uint8), code="gray-10+crc5")
     cap = np.zeros((17, 8, 10), np.uint8)
     cap[15] = 200
-    cap[:5] = 200
-    scan.update(cap)
-    if not scan.done:
-        with pytest.raises(ValueError, match="like round 1"):
-            scan.update(np.zeros((16, 8, 12), np.uint8))
+    cap[:15] = 200 * code.codebook[np.arange(10)].T[:, None, :]  # rows 0-3: codewords of columns 0..9
+    cap[:15, 4:] = 200 * np.random.default_rng(0).integers(0, 2, (15, 4, 10), dtype=np.uint8)  # rows 4-7: CRC fails
+    first = scan.update(cap)
+    assert (first.resolved, first.failing) == (40, 40) and not scan.done, "rows 4-7 are left for round 2"
+    with pytest.raises(ValueError, match="like round 1"):
+        scan.update(np.zeros((16, 8, 12), np.uint8))
     with pytest.raises(ValueError):
         AdaptiveScan("no-such-code", 1024, 8)
 

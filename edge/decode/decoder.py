@@ -48,7 +48,7 @@ from .backends import Q_SCALE
 from .backends import get as get_backend
 from .inputs import Stack, validate
 from .levels import estimate_levels
-from .search import METRICS, band_args, search_candidates
+from .search import METRICS, band_args, check_call, search_candidates
 from .settings import DEFAULT_SETTINGS, METHODS, DecodeSettings
 from .spatial import spatial_stage
 from .validity import eligibility, valid_mask
@@ -148,14 +148,7 @@ def _decode(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code
             inverse: np.ndarray | None, min_disparity: float | None, max_disparity: float | None,
             columns: int | None, stripe: int, bit_depth: int | None, iterations: int = 1) -> Decoded:
     """The stages of the module docstring, in order."""
-    if s.levels == "refit" and inverse is not None:
-        raise ValueError("levels: 'refit' expects no inverse frames (pattern + inverse decisions "
-                         "do not use the calibration levels), got inverse=")
-    if stripe < 1:
-        raise ValueError(f"stripe: expected >= 1, got {stripe}")
-    ncols = code.size if columns is None else int(columns)
-    if not 1 <= ncols <= code.size:
-        raise ValueError(f"columns: expected 1..{code.size} for code {code.name!r}, got {columns}")
+    ncols = check_call(code, s, inverse=inverse, columns=columns, stripe=stripe)
     band = band_args(min_disparity, max_disparity)
     stack = validate(frames, white, black, code, inverse=inverse, bit_depth=bit_depth)
     first = s.replace(method="hard" if s.method == "hard" else "soft")

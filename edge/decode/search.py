@@ -44,6 +44,21 @@ class Candidates:
     stats: dict = field(default_factory=dict)
 
 
+def check_call(code: Code, settings: DecodeSettings, *, inverse: np.ndarray | None, columns: int | None,
+               stripe: int) -> int:
+    """The capture facts `decode` checks for every backend (one ValueError each); returns the
+    codebook rows in use (``columns``, default all of ``code``)."""
+    if settings.levels == "refit" and inverse is not None:
+        raise ValueError("levels: 'refit' expects no inverse frames (pattern + inverse decisions "
+                         "do not use the calibration levels), got inverse=")
+    if stripe < 1:
+        raise ValueError(f"stripe: expected >= 1, got {stripe}")
+    ncols = code.size if columns is None else int(columns)
+    if not 1 <= ncols <= code.size:
+        raise ValueError(f"columns: expected 1..{code.size} for code {code.name!r}, got {columns}")
+    return ncols
+
+
 def band_args(min_disparity: float | None, max_disparity: float | None) -> tuple[bool, int, int]:
     """``(use_band, min_d, max_d)`` of a disparity band in camera pixels (floor / ceil to integers;
     no band when both are None); one ValueError for a non-finite, huge or inverted band."""

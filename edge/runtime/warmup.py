@@ -26,24 +26,20 @@ from typing import Any, Callable
 
 import numpy as np
 
-#: decoder methods of the column-pattern pipeline (the others belong to dots / curtain profiles)
-COLUMN_METHODS = ("soft", "hard", "list", "median")
-
-
 def switchable_variants(profile) -> list[tuple[str, Any]]:
     """[(label, profile)] the live config may switch ``profile`` to, other than itself.
 
     Labels: ``"decoder.method=<m>"`` and ``"edc"``.  Only column-pattern profiles have variants
     (the dots and curtain pipelines have one method each).
     """
-    from edge.profiles import apply_update
-
+    from edge.decode.settings import METHODS  # the decoder's own list (dots / curtain have one method each)
     from edge.device import pipeline_kind
+    from edge.profiles import apply_update
 
     if pipeline_kind(profile) != "columns":
         return []
     out = [(f"decoder.method={m}", apply_update(profile, {"decoder": {"method": m}}, source="warm-up"))
-           for m in COLUMN_METHODS if m != profile.decoder.method]
+           for m in METHODS if m != profile.decoder.method]
     if profile.edc.rounds == 0:
         out.append(("edc", apply_update(profile, {"edc": {"rounds": 1}}, source="warm-up")))
     return out

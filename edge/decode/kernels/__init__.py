@@ -30,10 +30,10 @@ from .hard import hard_lean
 from .lanes import soft_lanes
 from .nary import soft_nary
 from .scalar import soft_binary
-from .top3 import IDX_BITS, NO_KEY, Band, sort_small
+from .top3 import IDX_BITS, IDX_MASK, NO_KEY, Band, sort_small
 
 __all__ = [
-    "BAND_NET", "IDX_BITS", "LANES", "METRIC_HARD", "METRIC_ML", "METRIC_NORMALIZED", "NO_KEY", "Y_CLIP",
+    "BAND_NET", "IDX_BITS", "IDX_MASK", "LANES", "METRIC_HARD", "METRIC_ML", "METRIC_NORMALIZED", "NO_KEY", "Y_CLIP",
     "Band", "CostModel", "hard_lean", "log_levels", "soft_band", "soft_band_fold", "soft_binary", "soft_lanes",
     "soft_nary", "sort_small",
 ]

@@ -18,6 +18,7 @@ import numpy as np
 
 from ....codes import Code
 from ...inputs import validate
+from ...search import METRICS, band_args, check_call
 from ...settings import DecodeSettings
 from . import refit as refit_k
 from . import validity as valid_k
@@ -70,8 +71,6 @@ def decode_device(ds: DeviceStack, code: Code, s: DecodeSettings, *, columns: in
     (H, W) float32, column0 (H, W) int32 (best candidate), eligible (H, W) bool, and for "soft" /
     "hard" column (H, W) int32 (-1 where invalid) and valid (H, W) bool; plus stats.
     buffers: a dict that keeps the device arrays between calls (no allocation per stack)."""
-    from ...decoder import METRICS
-
     metric = METRICS[s.metric]
     if s.levels == "refit":
         ds = refit_stack(ds, code, s, metric, columns=columns, band=band, stripe=stripe, stream=stream,
@@ -95,12 +94,15 @@ def decode_device(ds: DeviceStack, code: Code, s: DecodeSettings, *, columns: in
     return out
 
 
-def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | None = None):
+def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | None = None, *, stripe: int = 1):
     """Device results of `decode_device` -> `edge.decode.Decoded` (one download of each output;
-    the host spatial filters for "list" / "median" / "list+median").  t0: perf_counter at the
-    upload; stats["seconds"] becomes the time from it to the results on the host."""
+    "list" / "median" / "list+median" run the host stages `spatial_stage` + `valid_mask` on the
+    device's candidates, confidence and eligibility).  t0: perf_counter at the upload;
+    stats["seconds"] becomes the time from it to the results on the host.  stripe: projector
+    columns per codebook row (the spatial filters work in projector pixels)."""
     from ...decoder import Decoded
-    from ...spatial import confidence_median, order_prior
+    from ...spatial import spatial_stage
+    from ...validity import valid_mask
 
     host = {k: v.copy_to_host(stream=stream) for k, v in out.items() if k != "stats"}
     if stream != 0:
@@ -111,30 +113,10 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     if s.method in ("soft", "hard"):
         return Decoded(column=host["column"], confidence=conf, valid=host["valid"], candidates=cand,
                        distances=host["distances"], stats=out["stats"])
-    eligible = host["eligible"]
-    if s.method in ("list", "list+median"):
-        column, valid = order_prior(cand, conf, eligible, t_high=s.t_high, t_low=s.t_low)
-    else:
-        column = host["column0"]
-    if s.method in ("median", "list+median"):
-        column, valid = confidence_median(column, conf, eligible & (column >= 0), t_low=s.t_low,
-                                          t_high=s.t_high, candidates=cand)
-    column = np.where(valid, column, -1).astype(np.int32)
-    return Decoded(column=column, confidence=conf, valid=column >= 0, candidates=cand,
+    spatial = spatial_stage(s, cand, conf, host["column0"], host["eligible"], stripe=stripe)
+    column, valid = valid_mask(spatial, conf, host["eligible"], s)
+    return Decoded(column=column, confidence=conf, valid=valid, candidates=cand,
                    distances=host["distances"], stats=out["stats"])
-
-
-def check_call(code: Code, s: DecodeSettings, *, inverse: Any, columns: int | None, stripe: int) -> int:
-    """`edge.decode.decode`'s argument checks (same messages); returns the codebook rows in use."""
-    if s.levels == "refit" and inverse is not None:
-        raise ValueError("levels: 'refit' expects no inverse frames (pattern + inverse decisions "
-                         "do not use the calibration levels), got inverse=")
-    if stripe < 1:
-        raise ValueError(f"stripe: expected >= 1, got {stripe}")
-    ncols = code.size if columns is None else int(columns)
-    if not 1 <= ncols <= code.size:
-        raise ValueError(f"columns: expected 1..{code.size} for code {code.name!r}, got {columns}")
-    return ncols
 
 
 def decode_whole(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code, settings: DecodeSettings, *,
@@ -142,11 +124,9 @@ def decode_whole(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code:
                  max_disparity: float | None = None, columns: int | None = None, stripe: int = 1,
                  bit_depth: int | None = None):
     """`edge.decode.decode` on the device (same arguments, same `Decoded`, same results)."""
-    from ...decoder import _band_args
-
     ncols = check_call(code, settings, inverse=inverse, columns=columns, stripe=stripe)
+    band = band_args(min_disparity, max_disparity)
     stack = validate(frames, white, black, code, inverse=inverse, bit_depth=bit_depth)
-    band = _band_args(stack.shape[1], min_disparity, max_disparity)
     t0 = time.perf_counter()
     out = decode_device(upload(stack), code, settings, columns=ncols, band=band, stripe=stripe)
-    return finish(out, settings, t0=t0)
+    return finish(out, settings, t0=t0, stripe=stripe)

@@ -26,9 +26,10 @@ from numba import cuda
 
 from ....codes import Code
 from ...inputs import validate
+from ...search import band_args, check_call
 from ...settings import DecodeSettings
 from .device import DeviceStack
-from .pipeline import check_call, decode_device, finish
+from .pipeline import decode_device, finish
 
 
 class Staging:
@@ -88,21 +89,19 @@ class Staging:
                bit_depth: int | None = None):
         """Decode the committed set `token` on its stream; `edge.decode.Decoded` on the host
         (the same results as `edge.decode.decode` with these arguments)."""
-        from ...decoder import _band_args
-
         host, dev, stream = self._host[token], self._dev[token], self._streams[token]
         n = self.n
         inverse = host[n + 2:] if self.inverse else None
         ncols = check_call(code, settings, inverse=inverse, columns=columns, stripe=stripe)
         stack = validate(host[:n], host[n], host[n + 1], code, inverse=inverse, bit_depth=bit_depth)
-        band = _band_args(self.shape[1], min_disparity, max_disparity)
+        band = band_args(min_disparity, max_disparity)
         inv_dev = dev[n + 2:] if self.inverse else dev[:1, :1, :1]
         ds = DeviceStack(frames=dev[:n], inverse=inv_dev, has_inv=self.inverse, white=dev[n], black=dev[n + 1],
                          scale=float(stack.scale), dtype=self.dtype, host_white=host[n], host_black=host[n + 1])
         t0 = time.perf_counter()
         out = decode_device(ds, code, settings, columns=ncols, band=band, stripe=stripe, stream=stream,
                             buffers=self._buffers[token])
-        return finish(out, settings, stream, t0=t0)
+        return finish(out, settings, stream, t0=t0, stripe=stripe)
 
     def decode_stack(self, frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code,
                      settings: DecodeSettings, *, inverse: np.ndarray | None = None, **facts: Any):
