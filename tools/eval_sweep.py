@@ -20,10 +20,10 @@ import numpy as np
 from edge.codes import Code
 from edge.decode.settings import DecodeSettings
 from edge.eval.sweep import DECODER_NAME, SweepConfig, edge_decoder, load_rows, read_findings, run_sweep, write_report
-from edge.sim.render import Capture
+from edge.capture import CodedCapture
 
 
-def reference_decoder(cap: Capture, code: Code, settings: DecodeSettings,
+def reference_decoder(cap: CodedCapture, code: Code, settings: DecodeSettings,
                       band: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
     """Brute-force decoder over the disparity band: squared distance of normalised intensities
     ("soft") or Hamming distance of thresholded symbols ("hard") to every candidate codeword.

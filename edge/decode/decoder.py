@@ -25,10 +25,10 @@ validity rules of `spatial.order_prior` / `spatial.confidence_median`.  Defaults
 
 `decode` is a composition of five stages, each driven by the one `DecodeSettings`:
 
-1. inputs (`edge.decode.inputs.validate`): the capture -> `Stack` (raw frames, ``scale``);
+1. inputs (`edge.decode.inputs.validate`): the capture -> `CodedCapture` (raw frames, ``scale``);
 2. levels (`edge.decode.levels.estimate_levels`): "calibration" keeps white / black, "refit"
-   refits them from a first candidate search (Stack -> Stack);
-3. candidate search (`edge.decode.search.search_candidates`, on ``settings.backend``): Stack ->
+   refits them from a first candidate search (CodedCapture -> CodedCapture);
+3. candidate search (`edge.decode.search.search_candidates`, on ``settings.backend``): CodedCapture ->
    `Candidates` (top-3 rows, distances, confidence, stats);
 4. spatial methods (`edge.decode.validity.eligibility`, then `edge.decode.spatial.spatial_stage`):
    eligible pixels, the support test or the order prior / median filter, with the stripe width;
@@ -46,7 +46,7 @@ from ..capture import CodedCapture
 from ..codes import Code
 from .backends import Q_SCALE
 from .backends import get as get_backend
-from .inputs import Stack, validate
+from .inputs import validate
 from .levels import estimate_levels
 from .search import METRICS, band_args, check_call, search_candidates
 from .settings import DEFAULT_SETTINGS, METHODS, DecodeSettings
@@ -153,7 +153,7 @@ def _decode(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code
     stack = validate(frames, white, black, code, inverse=inverse, bit_depth=bit_depth)
     first = s.replace(method="hard" if s.method == "hard" else "soft")
 
-    def top1(st: Stack) -> np.ndarray:
+    def top1(st: CodedCapture) -> np.ndarray:
         return search_candidates(st, code, first, columns=ncols, band=band, stripe=stripe).candidates[..., 0]
 
     stack = estimate_levels(stack, code, s.levels, top1, iterations=iterations)

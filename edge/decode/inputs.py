@@ -17,11 +17,6 @@ _INT_DTYPES = (np.uint8, np.uint16)
 _FLOAT_DTYPES = (np.float32, np.float64)
 
 
-#: The decoder's name for a validated capture: `edge.capture.CodedCapture` (attributes
-#: ``frames, inverse, white, black, scale``).
-Stack = CodedCapture
-
-
 def _check_dtype(name: str, a: np.ndarray) -> None:
     if a.dtype not in _INT_DTYPES + _FLOAT_DTYPES:
         raise ValueError(

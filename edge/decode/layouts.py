@@ -69,10 +69,6 @@ class LayoutCapture:
     rows = property(lambda self: int(self._get("rows", "columns", 0)), doc="row cells in use")
 
 
-#: Former name of `LayoutCapture`.
-Capture = LayoutCapture
-
-
 def _axis(frames: np.ndarray, inverse: np.ndarray | None, white: np.ndarray, black: np.ndarray, code: Code,
           cells: int) -> CodedCapture:
     """One coded axis; decoded in code cells (stripe None: the layout's stripe is on `LayoutCapture`)."""

@@ -11,11 +11,11 @@ pixel, ``r_i = black + (white - black) * x_i`` by least squares over the n code 
 ``x_i`` the symbol of a decoded column, ``s / (q - 1)``) plus the two calibration frames (x = 1
 and x = 0).  `estimate_levels` is the decoder's level stage (``levels="refit"`` of `edge.decode.decode`):
 it takes the columns of a first candidate search, refits the levels and hands back a float32
-normalised `Stack` with the refitted white / black, which the decoder searches again.  This is
+normalised `CodedCapture` with the refitted white / black, which the decoder searches again.  This is
 the usual EM-style refinement of a communication receiver; it needs no extra frames.
 
-Stage interface: `Stack` in (frames (n, H, W), white / black (H, W) raw, ``scale`` to normalised
-units), `Stack` out; ``"calibration"`` returns the stack as it is, ``"refit"`` a float32 stack in
+Stage interface: `CodedCapture` in (frames (n, H, W), white / black (H, W) raw, ``scale`` to normalised
+units), `CodedCapture` out; ``"calibration"`` returns the stack as it is, ``"refit"`` a float32 stack in
 normalised units (scale 1).  The first search is the caller's (``top1``), so this module does
 not depend on the decoder.
 """
@@ -27,7 +27,8 @@ from typing import Callable
 import numpy as np
 
 from ..codes import Code
-from .inputs import Stack, validate
+from ..capture import CodedCapture
+from .inputs import validate
 
 #: Smallest white - black contrast (normalised units) a refitted pixel keeps, so that the decoder
 #: still decodes it (the kernels need white > black).
@@ -82,13 +83,13 @@ def refine_levels(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code
     return (np.where(ok, w, white).astype(np.float32), np.where(ok, b, black).astype(np.float32))
 
 
-def estimate_levels(stack: Stack, code: Code, levels: str, top1: Callable[[Stack], np.ndarray], *,
-                    iterations: int = 1) -> Stack:
+def estimate_levels(stack: CodedCapture, code: Code, levels: str, top1: Callable[[CodedCapture], np.ndarray], *,
+                    iterations: int = 1) -> CodedCapture:
     """The level stage: the on / off levels the final search uses (see the module docstring).
 
     levels: "calibration" (`stack` unchanged) or "refit": the frames as float32 normalised, the
     `initial_levels`, then `iterations` times ``refine_levels(..., top1(current stack))``.
-    top1: (Stack) -> (H, W) int codebook rows (-1 = none), the decoder's first candidate search
+    top1: (CodedCapture) -> (H, W) int codebook rows (-1 = none), the decoder's first candidate search
     (every pixel, no valid mask).  Not with inverse frames (they do not use the calibration
     levels for their decisions).
     """

@@ -1,6 +1,6 @@
 """Stage 2 of `edge.decode.decode`: the candidate search (exact top-3 per pixel, on a backend).
 
-Interface: a validated `edge.decode.inputs.Stack` (frames (n, H, W), white / black (H, W), raw
+Interface: a validated `edge.decode.inputs.CodedCapture` (frames (n, H, W), white / black (H, W), raw
 values times ``stack.scale`` = normalised intensity) and the settings' ``method``, ``metric``,
 ``sigma_r``, ``sigma_s`` and ``backend`` -> `Candidates`:
 
@@ -25,7 +25,7 @@ import numpy as np
 
 from ..codes import Code
 from .backends import get as get_backend
-from .inputs import Stack
+from ..capture import CodedCapture
 from .kernels import METRIC_ML, METRIC_NORMALIZED
 from .settings import METRIC_NAMES, DecodeSettings
 
@@ -75,7 +75,7 @@ def band_args(min_disparity: float | None, max_disparity: float | None) -> tuple
     return True, lo, hi
 
 
-def search_candidates(stack: Stack, code: Code, settings: DecodeSettings, *, columns: int,
+def search_candidates(stack: CodedCapture, code: Code, settings: DecodeSettings, *, columns: int,
                       band: tuple[bool, int, int], stripe: int) -> Candidates:
     """Exact top-3 search of `stack` on ``settings.backend``: the hard-decision search for
     ``method="hard"``, the soft search under ``settings.metric`` otherwise."""

@@ -13,10 +13,6 @@ import numpy as np
 from ..capture import CodedCapture, NoiseModel, full_scale
 from ..codes import Code
 
-#: make_capture's result: `edge.capture.CodedCapture` with ``truth`` = the true rows.
-SyntheticCapture = CodedCapture
-
-
 def _quantise(x: np.ndarray, dtype: np.dtype, bit_depth: int | None = None) -> np.ndarray:
     x = np.clip(x, 0.0, 1.0)
     if np.dtype(dtype).kind == "f":

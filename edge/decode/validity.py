@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .inputs import Stack
+from ..capture import CodedCapture
 from .settings import DecodeSettings
 from .spatial import Spatial
 
@@ -54,7 +54,7 @@ def final_mask(column, conf, eligible, support, use_support, min_confidence, t_l
             out_col[yy, xx] = column[yy, xx] if ok else np.int32(-1)
 
 
-def eligibility(stack: Stack, candidates: np.ndarray, min_contrast: float) -> tuple[np.ndarray, np.ndarray]:
+def eligibility(stack: CodedCapture, candidates: np.ndarray, min_contrast: float) -> tuple[np.ndarray, np.ndarray]:
     """(column (H, W) int32 = candidates[..., 0], eligible (H, W) bool): contrast
     ``(white - black) * scale >= min_contrast`` (normalised units, float32) and a column."""
     h, w = stack.shape

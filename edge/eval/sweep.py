@@ -56,17 +56,18 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
+from ..capture import CodedCapture
 from ..codes import Code, get_code
 from ..decode import decode
 from ..decode.settings import DEFAULT_SETTINGS, DecodeSettings
 from ..sim.camera import CameraModel
 from ..sim.metrics import error_map, evaluate, truth
-from ..sim.render import Capture, capture, capture_code
+from ..sim.render import capture, capture_code
 from ..sim.scene import Scene
 from ..sim.scenes import make_scene
 from .report import markdown_table, pyplot, save_figure
 
-Decoder = Callable[[Capture, Code, DecodeSettings, tuple[int, int]], tuple[np.ndarray, np.ndarray]]
+Decoder = Callable[[CodedCapture, Code, DecodeSettings, tuple[int, int]], tuple[np.ndarray, np.ndarray]]
 
 #: How `edge_decoder` is described in reports.
 DECODER_NAME = "edge.decode.decode (levels=refined: edge.decode.decode_refined)"
@@ -154,7 +155,7 @@ def point_settings(method: str, levels: str, camera: CameraModel) -> DecodeSetti
 def edge_decoder() -> Decoder:
     """Decoder function backed by `edge.decode.decode` with the point's `DecodeSettings`."""
 
-    def run(cap: Capture, code: Code, settings: DecodeSettings, band: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    def run(cap: CodedCapture, code: Code, settings: DecodeSettings, band: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
         out = decode(cap.frames, cap.white, cap.black, code, settings=settings, min_disparity=band[0],
                      max_disparity=band[1], stripe=cap.stripe, bit_depth=cap.bits if cap.bits != 8 else None)
         return np.asarray(out.column), np.asarray(out.valid)

@@ -6,19 +6,19 @@ Public API::
     CameraModel(bits=8, sigma_r=..., sigma_s=..., ambient=..., projector=..., exposure=1.0,
                 total_exposure=10.0, defocus_sigma=0.0, sampling="nearest")
     capture(scene, projector_frames, camera, *, rng, exposure=None) -> (m, H, W) uint8/uint16
-    capture_code(scene, code, camera, *, rng, stripe=1) -> Capture(frames, white, black, exposure, ...)
+    capture_code(scene, code, camera, *, rng, stripe=1) -> edge.capture.CodedCapture
     evaluate(decoded_column, scene, *, valid=None, threshold=0, stripe=1) -> Metrics
 """
 
 from .camera import SUPPORTED_BITS, CameraModel
 from .geometry import DEPTH_RANGE_M, Geometry
 from .metrics import Metrics, depth_from_columns, error_map, error_rate, evaluate
-from .render import Capture, capture, capture_code, code_profiles, projector_irradiance
+from .render import capture, capture_code, code_profiles, projector_irradiance
 from .scene import Scene, build_scene
 from .scenes import make_scene, scene_names
 
 __all__ = [
-    "CameraModel", "Capture", "DEPTH_RANGE_M", "Geometry", "Metrics", "SUPPORTED_BITS", "Scene",
+    "CameraModel", "DEPTH_RANGE_M", "Geometry", "Metrics", "SUPPORTED_BITS", "Scene",
     "build_scene", "capture", "capture_code", "code_profiles", "depth_from_columns", "error_map",
     "error_rate", "evaluate", "make_scene", "projector_irradiance", "scene_names",
 ]

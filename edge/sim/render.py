@@ -26,12 +26,6 @@ from .camera import CameraModel
 from .scene import Scene
 
 
-#: A simulated capture is the one coded-capture type (`edge.capture.CodedCapture`): frames,
-#: white, black, code, stripe, bit_depth = ADC bits, frame_exposure (relative units, n + 2 equal
-#: values at fixed total exposure), noise (the camera's sigma_r, sigma_s), camera.
-Capture = CodedCapture
-
-
 def _as_rng(rng: np.random.Generator | int | None) -> np.random.Generator:
     if isinstance(rng, np.random.Generator):
         return rng
@@ -200,12 +194,16 @@ def code_profiles(code: Code, projector_width: int, *, stripe: int = 1) -> np.nd
 
 
 def capture_code(scene: Scene, code: Code, camera: CameraModel, *, rng: np.random.Generator | int | None,
-                 stripe: int = 1) -> Capture:
+                 stripe: int = 1) -> CodedCapture:
     """Capture ``code`` at fixed total exposure: n frames of exposure ``camera.total_exposure / n``.
 
     The white (all on) and black (all off) calibration frames use the same per-frame exposure and
     are captured after the code frames from the same noise stream.  Raises ValueError if the scene
     sees projector columns the code (times ``stripe``) does not cover.
+
+    A simulated capture is the one coded-capture type (`edge.capture.CodedCapture`): frames,
+    white, black, code, stripe, bit_depth = ADC bits, frame_exposure (relative units, n + 2 equal
+    values at fixed total exposure), noise (the camera's sigma_r, sigma_s), camera.
     """
     if not isinstance(code, Code):
         raise ValueError(f"capture_code: expected an edge.codes.Code, got {type(code).__name__}")

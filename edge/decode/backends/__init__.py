@@ -5,7 +5,7 @@ brute-force reference in tests/test_decode.py):
 
 ``search(stack, code, *, metric, sigma_r, sigma_s, columns, band, stripe, path=None)``
     Exact soft top-3 over the codebook rows ``0..columns-1`` (restricted to the disparity
-    ``band = (use_band, min_d, max_d)``, pixels).  ``stack``: `edge.decode.inputs.Stack`;
+    ``band = (use_band, min_d, max_d)``, pixels).  ``stack``: `edge.capture.CodedCapture` (from `edge.decode.inputs.validate`);
     ``metric``: `edge.decode.kernels.METRIC_ML` / ``METRIC_NORMALIZED`` / ``METRIC_HARD``.
     Returns ``(candidates (H,W,3) int32, distances (H,W,3) float32, confidence (H,W) float32,
     stats dict)``; costs are quantised with `Q_SCALE` so every backend returns the same arrays.

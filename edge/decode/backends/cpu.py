@@ -11,7 +11,7 @@ import numpy as np
 
 from ...codes import Code
 from .. import kernels
-from ..inputs import Stack
+from ...capture import CodedCapture
 from ..tables import code_tables
 from . import Q_SCALE
 
@@ -29,7 +29,7 @@ def _band_columns(band: tuple[bool, int, int], stripe: int) -> int:
 
 
 def search(
-    stack: Stack,
+    stack: CodedCapture,
     code: Code,
     *,
     metric: int,
@@ -114,7 +114,7 @@ def search(
     return cand, dist, conf, st
 
 
-def hard(stack: Stack, code: Code, *, columns: int, band: tuple[bool, int, int], stripe: int):
+def hard(stack: CodedCapture, code: Code, *, columns: int, band: tuple[bool, int, int], stripe: int):
     """Hard decisions, nearest codeword in Hamming distance (see `edge.decode.backends`)."""
     tb = code_tables(code)
     h, w = stack.shape

@@ -29,7 +29,7 @@ import numpy as np  # noqa: E402
 from numba import cuda  # noqa: E402
 
 from ....codes import Code  # noqa: E402
-from ...inputs import Stack  # noqa: E402
+from ....capture import CodedCapture  # noqa: E402
 from .cost import SIM  # noqa: E402
 from .device import DeviceStack, hard_device, search_device, upload  # noqa: E402
 
@@ -51,7 +51,7 @@ def _host(cand, dist, conf, st, t0: float) -> tuple[np.ndarray, np.ndarray, np.n
     return (*out, st)
 
 
-def search(stack: Stack, code: Code, *, metric: int, sigma_r: float, sigma_s: float, columns: int,
+def search(stack: CodedCapture, code: Code, *, metric: int, sigma_r: float, sigma_s: float, columns: int,
            band: tuple[bool, int, int], stripe: int, path: str | None = None):
     """Exact top-3 search on the GPU (see `edge.decode.backends`): one upload, one download.
 
@@ -63,7 +63,7 @@ def search(stack: Stack, code: Code, *, metric: int, sigma_r: float, sigma_s: fl
     return _host(cand, dist, conf, st, t0)
 
 
-def hard(stack: Stack, code: Code, *, columns: int, band: tuple[bool, int, int], stripe: int):
+def hard(stack: CodedCapture, code: Code, *, columns: int, band: tuple[bool, int, int], stripe: int):
     """Hard decisions, nearest codeword in Hamming distance, on the GPU (see `edge.decode.backends`)."""
     t0 = time.perf_counter()
     ds = upload(stack)

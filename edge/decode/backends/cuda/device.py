@@ -1,6 +1,6 @@
 """Device-side decoder inputs and the search launches (host wrappers of the kernels).
 
-`DeviceStack` is a validated `edge.decode.inputs.Stack` on the GPU (frames stay in their dtype:
+`DeviceStack` is a validated `edge.decode.inputs.CodedCapture` on the GPU (frames stay in their dtype:
 uint8 frames move 1 byte per sample).  `search_device` / `hard_device` launch the kernels on a
 `DeviceStack` and return device arrays; `edge.decode.backends.cuda.search` / ``hard`` wrap them
 with one upload and one download for the backend seam.  Code tables are uploaded once per code.
@@ -17,7 +17,7 @@ from numba import cuda
 
 from ....codes import Code
 from ... import kernels
-from ...inputs import Stack
+from ....capture import CodedCapture
 from ...tables import code_tables
 from .. import Q_SCALE
 from . import hard as hard_k
@@ -32,7 +32,7 @@ BAND_SCAN_MAX = 512
 
 @dataclass
 class DeviceStack:
-    """A `Stack` on the device.  frames (n, H, W), inverse (n, H, W) or a (1, 1, 1) dummy,
+    """A `CodedCapture` on the device.  frames (n, H, W), inverse (n, H, W) or a (1, 1, 1) dummy,
     white / black (H, W): device arrays of the frames' dtype; scale: raw -> normalised;
     host_white / host_black: the host copies (the exact per-pixel logs are computed there)."""
 
@@ -58,8 +58,8 @@ class DeviceStack:
         return self.host_white, self.host_black
 
 
-def upload(stack: Stack, stream: Any = 0) -> DeviceStack:
-    """Copy a validated `Stack` to the device (on `stream`)."""
+def upload(stack: CodedCapture, stream: Any = 0) -> DeviceStack:
+    """Copy a validated `CodedCapture` to the device (on `stream`)."""
     inv = stack.inverse if stack.inverse is not None else stack.frames[:1, :1, :1].copy()
     return DeviceStack(
         frames=cuda.to_device(stack.frames, stream=stream), inverse=cuda.to_device(inv, stream=stream),
