@@ -73,6 +73,13 @@ else:  # pragma: no cover - needs a CUDA device
         return libdevice.rint(np.float64(x))
 
 
+
+@cuda.jit(device=True)
+def pixel_of(p, height, width):
+    """Thread ``p`` (one thread per pixel, row-major) -> (yy, xx, inside ``p < height * width``)."""
+    yy = p // width
+    return yy, p - yy * width, p < height * width
+
 @cuda.jit(device=True)
 def pixel_logs_of(white, black, lmode, ltab, plog, yy, xx):
     """(log v_white, log v_black) of pixel (yy, xx) from the host-computed logs (0 when unused)."""

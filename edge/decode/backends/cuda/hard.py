@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import cuda
 
-from .cost import band_of, mul64
+from .cost import band_of, mul64, pixel_of
 
 TPB = 128
 
@@ -22,13 +22,9 @@ TPB = 128
 def hard_syndrome(frames, inverse, has_inv, white, black, syn_col, info_bit, leader_info, leader_wt,
                   col_of_info, d_min, ncols, use_band, min_d, max_d, stripe, out_cand, out_dist, out_conf):
     n = frames.shape[0]
-    height = frames.shape[1]
-    width = frames.shape[2]
-    p = cuda.grid(1)
-    if p >= height * width:
+    yy, xx, inside = pixel_of(cuda.grid(1), frames.shape[1], frames.shape[2])
+    if not inside:
         return
-    yy = p // width
-    xx = p - yy * width
     thr = mul64(0.5, np.float64(white[yy, xx]) + np.float64(black[yy, xx]))
     syn = np.int64(0)
     inf = np.int64(0)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import cuda, njit
 
-from .cost import band_of, insert, mul64, rint, write_none, write_top3
+from .cost import band_of, insert, mul64, pixel_of, rint, write_none, write_top3
 from ...kernels import IDX_BITS, METRIC_HARD, METRIC_ML, NO_KEY, Y_CLIP
 
 TPB = 64
@@ -50,13 +50,9 @@ def soft_nary(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q
     e = cuda.local.array(MAX_NQ, np.float64)
     eq = cuda.local.array(MAX_NQ, np.int64)
     n = frames.shape[0]
-    height = frames.shape[1]
-    width = frames.shape[2]
-    p = cuda.grid(1)
-    if p >= height * width:
+    yy, xx, inside = pixel_of(cuda.grid(1), frames.shape[1], frames.shape[2])
+    if not inside:
         return
-    yy = p // width
-    xx = p - yy * width
     a = mul64(white[yy, xx], scale)
     b = mul64(black[yy, xx], scale)
     lo, hi = band_of(xx, use_band, min_d, max_d, stripe, ncols)

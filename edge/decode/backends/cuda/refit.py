@@ -17,7 +17,7 @@ import numpy as np
 from numba import cuda
 
 from ...levels import MIN_CONTRAST
-from .cost import mul32
+from .cost import mul32, pixel_of
 
 TPB = 128
 _MINC = np.float32(MIN_CONTRAST)
@@ -29,13 +29,9 @@ MAX_SAMPLES = 66
 def normalise(frames, white, black, scale, out_f, out_w, out_b):
     """out_* (float32) = raw.astype(float32) * scale (scale float32)."""
     n = frames.shape[0]
-    height = frames.shape[1]
-    width = frames.shape[2]
-    p = cuda.grid(1)
-    if p >= height * width:
+    yy, xx, inside = pixel_of(cuda.grid(1), frames.shape[1], frames.shape[2])
+    if not inside:
         return
-    yy = p // width
-    xx = p - yy * width
     for i in range(n):
         out_f[i, yy, xx] = mul32(np.float32(frames[i, yy, xx]), scale)
     out_w[yy, xx] = mul32(np.float32(white[yy, xx]), scale)
@@ -82,13 +78,9 @@ def initial_levels(f, w, b):
     """In place: where not w > b, w, b = max(hi, lo + MIN_CONTRAST), lo (`levels.initial_levels`)."""
     s = cuda.local.array(MAX_SAMPLES, np.float32)
     n = f.shape[0]
-    height = f.shape[1]
-    width = f.shape[2]
-    p = cuda.grid(1)
-    if p >= height * width:
+    yy, xx, inside = pixel_of(cuda.grid(1), f.shape[1], f.shape[2])
+    if not inside:
         return
-    yy = p // width
-    xx = p - yy * width
     if w[yy, xx] > b[yy, xx]:
         return
     m = n + 2
@@ -116,13 +108,9 @@ def refine_levels(f, w, b, xtab, sx_tab, sxx_tab, cand, out_w, out_b):
     sx_tab / sxx_tab (size,) float32 their sums + 1 and sums of squares + 1 (`refit_tables`);
     cand (H, W, 3) int32 candidates: the column is cand[..., 0] (-1: keep w, b)."""
     n = f.shape[0]
-    height = f.shape[1]
-    width = f.shape[2]
-    p = cuda.grid(1)
-    if p >= height * width:
+    yy, xx, inside = pixel_of(cuda.grid(1), f.shape[1], f.shape[2])
+    if not inside:
         return
-    yy = p // width
-    xx = p - yy * width
     c = cand[yy, xx, 0]
     if c < 0:
         out_w[yy, xx] = w[yy, xx]

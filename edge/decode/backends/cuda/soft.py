@@ -24,7 +24,7 @@ from functools import lru_cache
 import numpy as np
 from numba import cuda
 
-from .cost import MAX_N, band_of, insert, mul64, pixel_llr, pixel_logs_of, write_none, write_top3
+from .cost import MAX_N, band_of, insert, mul64, pixel_llr, pixel_logs_of, pixel_of, write_none, write_top3
 from ...kernels import IDX_BITS, NO_KEY
 
 #: Packed codewords per shared-memory tile of `full_kernel`.
@@ -138,11 +138,9 @@ def band_kernel(ngroups: int):
         height = frames.shape[1]
         width = frames.shape[2]
         tid = cuda.threadIdx.x
-        p = cuda.blockIdx.x * tpb + tid
-        if p >= height * width:
+        yy, xx, inside = pixel_of(cuda.blockIdx.x * tpb + tid, height, width)
+        if not inside:
             return
-        yy = p // width
-        xx = p - yy * width
         a = mul64(white[yy, xx], scale)
         b = mul64(black[yy, xx], scale)
         lo, hi = band_of(xx, True, min_d, max_d, stripe, ncols)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numba import cuda
 
-from .cost import mul32
+from .cost import mul32, pixel_of
 
 TPB = 128
 #: Window radius the GPU support check implements (`spatial_support`'s default 5 x 5 window).
@@ -25,13 +25,9 @@ _MAXV = (2 * RADIUS + 1) ** 2 - 1
 
 @cuda.jit
 def eligible_column(cand, white, black, scale, min_contrast, out_col, out_eligible):
-    height = white.shape[0]
-    width = white.shape[1]
-    p = cuda.grid(1)
-    if p >= height * width:
+    yy, xx, inside = pixel_of(cuda.grid(1), white.shape[0], white.shape[1])
+    if not inside:
         return
-    yy = p // width
-    xx = p - yy * width
     c = cand[yy, xx, 0]
     contrast = mul32(np.float32(white[yy, xx]) - np.float32(black[yy, xx]), scale)
     out_col[yy, xx] = c
@@ -44,11 +40,9 @@ def support_mask(column, conf, eligible, use_support, t_vote, min_votes, tol, mi
     v = cuda.local.array(_MAXV, np.int32)
     height = column.shape[0]
     width = column.shape[1]
-    p = cuda.grid(1)
-    if p >= height * width:
+    yy, xx, inside = pixel_of(cuda.grid(1), height, width)
+    if not inside:
         return
-    yy = p // width
-    xx = p - yy * width
     c = column[yy, xx]
     el = eligible[yy, xx]
     supported = False
