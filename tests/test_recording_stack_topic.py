@@ -17,7 +17,8 @@ def test_service_writes_one_stack_message_per_depth_map(tmp_path):
     out = tmp_path / "run.mcap"
     sensor = SimSensor(profile, max_speed=True)
     rec = RecordingThread(out, profile, sensor_metadata=sensor.info.metadata)
-    status = Service(profile, sensor, recorder=rec).run(stacks=2)
+    # queue 8: a simulator at full speed on a loaded machine must not drop a stack (the queue drops the oldest)
+    status = Service(profile, sensor, recorder=rec, queue_capacity=8).run(stacks=2)
     assert status["stacks_decoded"] == 2
     reader = RecordingReader(out)
     stacks = [m.value for m in reader.messages(topics=["/test-small/stack"])]  # JSON -> dict

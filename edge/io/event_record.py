@@ -114,11 +114,10 @@ def event_stacks(reader, *, max_pending: int = 16) -> Iterator[tuple[int, list[E
     in stack order; a stack is complete once its output arrived and a later stack started, or once a
     stack ``max_pending`` ids later was seen, or at the end of the file (``reader.problem`` then says
     whether the file was cut short)."""
-    from edge.io.mcap import RecordedOutput
+    from edge.io.mcap_reader import OutputPairs
 
     pending: dict[int, list] = {}
-    out_info: dict[int, dict] = {}
-    depth: dict[int, tuple[np.ndarray, int]] = {}
+    outputs = OutputPairs()
     newest: int | None = None
 
     def ready(sid: int) -> bool:
@@ -131,17 +130,11 @@ def event_stacks(reader, *, max_pending: int = 16) -> Iterator[tuple[int, list[E
             s = parse_event_slice(m.value)
             sid = s.stack
             pending.setdefault(sid, [[], None])[0].append(s)
-        elif leaf == "output_info":
-            out_info[m.sequence] = m.value
-        elif leaf == "depth":
-            depth[m.sequence] = (m.value, m.log_time)
-        elif leaf == "confidence" and m.sequence in depth:
-            d, t = depth.pop(m.sequence)
-            info = out_info.pop(m.sequence, {})
-            out = RecordedOutput(d, m.value, int(info.get("timestamp_ns", t)), int(info.get("stack", -1)),
-                                 int(m.sequence), info)
-            sid = out.stack
-            pending.setdefault(sid, [[], None])[1] = out
+        else:
+            out = outputs.take(leaf, m)
+            if out is not None:
+                sid = out.stack
+                pending.setdefault(sid, [[], None])[1] = out
         if sid is None:
             continue
         newest = sid if newest is None else max(newest, sid)

@@ -145,6 +145,29 @@ def _reason(exc: BaseException) -> str:
     return describe_error(exc)
 
 
+class OutputPairs:
+    """Pairs a recording's ``output_info`` / ``depth`` / ``confidence`` messages of one sequence
+    number into a `RecordedOutput` (the writer puts them in that order; ``output_info`` may be
+    missing: the depth message's log time is the timestamp then)."""
+
+    def __init__(self) -> None:
+        self._info: dict[int, dict[str, Any]] = {}
+        self._depth: dict[int, tuple[np.ndarray, int]] = {}
+
+    def take(self, leaf: str, m: Any) -> RecordedOutput | None:
+        """Feed one message (``leaf``: the last part of its topic); the output it completes, or None."""
+        if leaf == "output_info":
+            self._info[m.sequence] = m.value
+        elif leaf == "depth":
+            self._depth[m.sequence] = (m.value, m.log_time)
+        elif leaf == "confidence" and m.sequence in self._depth:
+            d, t = self._depth.pop(m.sequence)
+            info = self._info.pop(m.sequence, {})
+            return RecordedOutput(d, m.value, int(info.get("timestamp_ns", t)), int(info.get("stack", -1)),
+                                  int(m.sequence), info)
+        return None
+
+
 class RecordingReader:
     """Reader for one recording (see the module docstring).
 
@@ -324,13 +347,9 @@ class RecordingReader:
 
     def frames(self) -> Iterator[RecordedFrame]:
         """Recorded camera frames in file order with their raw_info metadata."""
-        infos: dict[int, dict[str, Any]] = {}
-        for m in self.messages():
-            leaf = m.topic.rsplit("/", 1)[-1]
-            if leaf == "raw_info":
-                infos[m.sequence] = m.value
-            elif leaf == "raw":
-                yield _frame(m, infos.pop(m.sequence, {}))
+        for item in self._events():
+            if isinstance(item, RecordedFrame):
+                yield item
 
     def outputs(self) -> Iterator[RecordedOutput]:
         """Recorded depth / confidence pairs in file order."""
@@ -341,25 +360,19 @@ class RecordingReader:
     def _events(self) -> Iterator[Any]:
         """RecordedFrame, RecordedOutput and ("stack", dict) items in file order."""
         infos: dict[int, dict[str, Any]] = {}
-        out_info: dict[int, dict[str, Any]] = {}
-        depth: dict[int, tuple[np.ndarray, int]] = {}
+        outputs = OutputPairs()
         for m in self.messages():
             leaf = m.topic.rsplit("/", 1)[-1]
             if leaf == "raw_info":
                 infos[m.sequence] = m.value
             elif leaf == "raw":
                 yield _frame(m, infos.pop(m.sequence, {}))
-            elif leaf == "output_info":
-                out_info[m.sequence] = m.value
-            elif leaf == "depth":
-                depth[m.sequence] = (m.value, m.log_time)
-            elif leaf == "confidence" and m.sequence in depth:
-                d, t = depth.pop(m.sequence)
-                info = out_info.pop(m.sequence, {})
-                yield RecordedOutput(d, m.value, int(info.get("timestamp_ns", t)),
-                                     int(info.get("stack", -1)), int(m.sequence), info)
             elif leaf == "stack":
                 yield ("stack", m.value)
+            else:
+                out = outputs.take(leaf, m)
+                if out is not None:
+                    yield out
 
     def stacks(self, *, max_pending: int = 16) -> Iterator[RecordedStack]:
         """Frames grouped by stack id, with the stack's info and recorded output attached.
