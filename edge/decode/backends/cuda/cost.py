@@ -26,6 +26,13 @@ from numba import config, cuda, njit
 
 from ...kernels import IDX_BITS, IDX_MASK, METRIC_HARD, METRIC_ML, METRIC_NORMALIZED, NO_KEY, Y_CLIP
 
+# The integer-only helpers are the CPU kernels' own functions (numba-cuda compiles an @njit
+# function that a kernel calls for the device), so the candidate band and the top-3 tie rule are
+# one piece of code; the float helpers below keep device copies, because the device must round
+# every product explicitly (mul64 / mul32).
+from ...kernels.top3 import _band as band_of  # noqa: F401  (re-exported to the kernel modules)
+from ...kernels.top3 import _insert as insert  # noqa: F401
+
 SIM = bool(config.ENABLE_CUDASIM)
 
 #: Log modes of the device kernels: no logs needed, table over raw levels, per-pixel array.
@@ -160,36 +167,6 @@ def pixel_llr(frames, inverse, has_inv, yy, xx, n, scale, a, b, metric, sr2, ss2
         if t > 0:
             c0 += t
     return dmin, c0
-
-
-@cuda.jit(device=True)
-def band_of(x, use_band, min_d, max_d, stripe, ncols):
-    """`kernels._band`: candidate rows [lo, hi] of camera column x (empty when lo > hi)."""
-    if not use_band:
-        return 0, ncols - 1
-    lo = (x - max_d) // stripe
-    hi = (x - min_d) // stripe
-    if lo < 0:
-        lo = 0
-    if hi > ncols - 1:
-        hi = ncols - 1
-    return lo, hi
-
-
-@cuda.jit(device=True)
-def insert(key, k1, k2, k3):
-    """`kernels._insert`: the three smallest keys (keys are unique: cost | column)."""
-    if key < k3:
-        if key < k2:
-            k3 = k2
-            if key < k1:
-                k2 = k1
-                k1 = key
-            else:
-                k2 = key
-        else:
-            k3 = key
-    return k1, k2, k3
 
 
 @cuda.jit(device=True)
