@@ -57,6 +57,19 @@ class DepthPipeline:
         #: source codes of the other devices in the room (set by ``edge run --room``): when given, the
         #: matched filter is the joint decorrelating one (`edge.source.joint`) instead of `despread`
         self.foreign_sources: tuple[str, ...] = ()
+        #: the decoder settings of the profile and the decode function of its backend, chosen once
+        #: here (a live config change builds a new pipeline): `decode`, or for the CUDA backend
+        #: `decode_staged` (pinned buffers + a stream, same results)
+        from edge.decode import decode
+        from edge.decode.backends import get as get_backend
+        from edge.decode.settings import from_profile
+
+        self.settings = from_profile(profile)
+        self._decode = decode
+        if self.settings.backend != "cpu" and get_backend(self.settings.backend).__name__.endswith(".cuda"):
+            from edge.decode.backends.cuda.staging import decode_staged
+
+            self._decode = decode_staged
 
     # -- stages ---------------------------------------------------------------------------
     def despread(self, images: np.ndarray) -> np.ndarray:
@@ -93,16 +106,9 @@ class DepthPipeline:
 
     def decode(self, codes: np.ndarray, white: np.ndarray, black: np.ndarray):
         """`edge.decode.decode` with the profile's method, noise model, thresholds and disparity band."""
-        from edge.decode import decode
-        from edge.decode.backends import get as get_backend
-        from edge.decode.settings import from_profile
-
         p = self.profile
-        settings = from_profile(p)
-        if settings.backend != "cpu" and get_backend(settings.backend).__name__.endswith(".cuda"):
-            from edge.decode.backends.cuda.staging import decode_staged as decode  # pinned buffers + a stream
-        return decode(
-            codes, white, black, self.code, settings=settings,
+        return self._decode(
+            codes, white, black, self.code, settings=self.settings,
             min_disparity=p.decoder.min_disparity, max_disparity=p.decoder.max_disparity,
             columns=self.columns, stripe=self.stripe,
             bit_depth=p.camera.bits if codes.dtype == np.uint16 else None,
