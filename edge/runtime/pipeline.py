@@ -119,7 +119,7 @@ class DepthPipeline:
 
         Decodes a small synthetic stack (8 rows x 64 columns, the camera's dtype, the profile's
         method and disparity band) so that the first real stack is not delayed by compilation
-        (about half a minute with an empty cache, well under a second from the cache), and runs the
+        (about a minute with an empty cache on a 2-core machine, well under a second from the cache), and runs the
         EDC check on it (the sparse kernels of `edge.edc`, so ``edc.rounds`` can be switched on
         without a compile pause).  Returns the seconds spent.
         """
