@@ -17,6 +17,16 @@ from edge.decode.inputs import validate
 from edge.decode.synthetic import make_capture
 from edge.decode.tables import code_tables
 
+# These tests check the candidate search against brute force and the contrast / confidence rule:
+# decode under that rule (the "error" rule's posterior re-orders candidates; its own exactness
+# tests are in tests/test_decode_posterior.py).
+from functools import partial as _partial  # noqa: E402
+
+from edge.decode import decode as _decode  # noqa: E402
+
+decode = _partial(_decode, validity="confidence")
+decode_capture = _partial(decode_capture, validity="confidence")
+
 
 def test_full_scale_is_one_rule():
     assert full_scale(np.uint8) == 255.0

@@ -9,6 +9,15 @@ from edge.codes import get_code
 from edge.decode import Decoded, confidence_median, decode, order_prior
 from edge.decode.backends import cpu as cpu_backend
 from edge.decode.decoder import Q_SCALE
+
+# These tests check the candidate search against brute force and the contrast / confidence rule:
+# decode under that rule (the "error" rule's posterior re-orders candidates; its own exactness
+# tests are in tests/test_decode_posterior.py).
+from functools import partial as _partial  # noqa: E402
+
+from edge.decode import decode as _decode  # noqa: E402
+
+decode = _partial(_decode, validity="confidence")
 from edge.decode.inputs import validate
 from edge.decode.kernels import LANES, METRIC_ML, METRIC_NORMALIZED
 from edge.decode.synthetic import make_capture

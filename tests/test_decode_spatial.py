@@ -7,6 +7,15 @@ import pytest
 
 from edge.codes import get_code
 from edge.decode import decode, decode_refined
+
+# These tests check the candidate search against brute force and the contrast / confidence rule:
+# decode under that rule (the "error" rule's posterior re-orders candidates; its own exactness
+# tests are in tests/test_decode_posterior.py).
+from functools import partial as _partial  # noqa: E402
+
+from edge.decode import decode as _decode  # noqa: E402
+
+decode = _partial(_decode, validity="confidence")
 from edge.decode.levels import initial_levels, refine_levels
 from edge.decode.spatial import confidence_median, order_prior, spatial_support
 from edge.decode.synthetic import make_capture

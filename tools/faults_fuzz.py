@@ -50,9 +50,12 @@ TEST_PROFILE = ROOT / "tests" / "data" / "profiles" / "test-small.toml"
 #: examples per property (ci / full)
 BUDGETS = {"ci": {"profiles": 60, "config": 40, "decode": 60},
            "full": {"profiles": 2000, "config": 500, "decode": 1500}}
+#: CI's small budget is derandomised: a fixed example sequence, so a run cannot go red by the luck
+#: of the draw (60 random decode() inputs hold only about three decodable ones); the full mode
+#: explores at random.
 for _name, _b in BUDGETS.items():
     settings.register_profile(f"edge-{_name}", deadline=None, database=None, print_blob=True,
-                              suppress_health_check=list(HealthCheck))
+                              suppress_health_check=list(HealthCheck), derandomize=_name == "ci")
 
 
 def budget(kind: str) -> int:
@@ -335,15 +338,19 @@ def decode_inputs(draw) -> tuple[Any, ...]:
     from edge.codes import get_code
 
     code = get_code(draw(st.sampled_from(CODES if os.environ.get("EDGE_FUZZ") == "full" else CI_CODES)))
-    h, w = draw(st.sampled_from([(1, 1), (0, 3), (3, 0), (1, 5), (5, 1), (4, 6), (7, 9)]))
-    n = code.n if draw(st.integers(0, 4)) else draw(st.integers(0, 12))
-    shape = draw(st.sampled_from([(n, h, w)] * 6 + [(h, w), (n, h, w, 2), (n,)]))
+    # one example in three is well formed (right n, shape and dtype), so that every budget
+    # decodes some; the rest may break any of them
+    formed = draw(st.integers(0, 2)) == 0
+    h, w = draw(st.sampled_from([(1, 1), (1, 5), (5, 1), (4, 6), (7, 9)] if formed else
+                                [(1, 1), (0, 3), (3, 0), (1, 5), (5, 1), (4, 6), (7, 9)]))
+    n = code.n if formed or draw(st.integers(0, 4)) else draw(st.integers(0, 12))
+    shape = (n, h, w) if formed else draw(st.sampled_from([(n, h, w)] * 6 + [(h, w), (n, h, w, 2), (n,)]))
     full = os.environ.get("EDGE_FUZZ") == "full"
     kinds = DTYPES if full else CI_DTYPES
-    dtype = draw(st.sampled_from([kinds[0]] * 4 + kinds[1:] if not full else DTYPES[:4] * 3 + DTYPES[4:]))
+    dtype = kinds[0] if formed else draw(st.sampled_from([kinds[0]] * 4 + kinds[1:] if not full else DTYPES[:4] * 3 + DTYPES[4:]))
     frames = _array(draw, shape, dtype)
-    wb_shape = (h, w) if draw(st.integers(0, 5)) else draw(st.sampled_from([(w, h), (h + 1, w), (h,), ()]))
-    wb_dtype = dtype if draw(st.integers(0, 5)) else draw(st.sampled_from(kinds))
+    wb_shape = (h, w) if formed or draw(st.integers(0, 5)) else draw(st.sampled_from([(w, h), (h + 1, w), (h,), ()]))
+    wb_dtype = dtype if formed or draw(st.integers(0, 5)) else draw(st.sampled_from(kinds))
     white = _array(draw, wb_shape, wb_dtype)
     black = _array(draw, wb_shape, wb_dtype)
     if draw(st.booleans()) and white.size:  # usually a usable white > black pair

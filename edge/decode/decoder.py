@@ -48,6 +48,7 @@ from .backends import Q_SCALE
 from .backends import get as get_backend
 from .inputs import validate
 from .levels import estimate_levels
+from .posterior import fit_noise, posterior, split_levels
 from .search import METRICS, band_args, check_call, search_candidates
 from .settings import DEFAULT_SETTINGS, METHODS, DecodeSettings
 from .spatial import spatial_stage
@@ -75,7 +76,14 @@ class Decoded:
         computed, summed over pixels) and ``brute_pixels``; the "lanes" path adds
         ``second_class_pixels`` / ``second_class_blocks`` / ``blocks`` / ``pending_blocks``; the
         "band" path adds ``wide_key_pixels`` (pixels whose costs exceeded the 32-bit keys and were
-        redone with 64-bit keys, see `kernels.soft_band_fold`).
+        redone with 64-bit keys, see `kernels.soft_band_fold`).  Under the "error" rule it adds
+        ``rule``, ``levels`` and the fitted noise model ``noise_a`` / ``noise_beta`` (variance
+        ``a + beta * I``, normalised units) with ``noise_fitted``.
+    error: (H, W) float32 estimated probability that ``candidates[..., 0]`` is more than one
+        codebook row off (`edge.decode.posterior`; the "error" validity rule), else None.  Under
+        that rule candidates / distances are the posterior's (re-ordered by likelihood, distances
+        the negative log-likelihoods) and confidence is ``(d2 - d1) / d2`` of their Mahalanobis
+        parts.
     """
 
     column: np.ndarray
@@ -84,6 +92,7 @@ class Decoded:
     candidates: np.ndarray
     distances: np.ndarray
     stats: dict = field(default_factory=dict)
+    error: np.ndarray | None = None
 
 
 def decode(
@@ -118,7 +127,7 @@ def decode(
     methods, metrics and the valid mask.
     """
     s = (DEFAULT_SETTINGS if settings is None else settings).replace(**options)
-    if s.backend != "cpu":  # device backends (edge.decode.backends.cuda) run levels, search and mask whole
+    if s.backend != "cpu" and s.rule(inverse is not None) == "confidence":  # device backends (edge.decode.backends.cuda) run levels, search and mask whole
         whole = getattr(get_backend(s.backend), "decode_whole", None)
         if whole is not None:
             return whole(frames, white, black, code, s, inverse=inverse, min_disparity=min_disparity,
@@ -136,9 +145,12 @@ def decode_refined(frames: np.ndarray, white: np.ndarray, black: np.ndarray, cod
 
     Pass 0 searches with the initial levels ("hard" for method "hard", else "soft"); each
     refit uses the previous pass's top-1 columns (every pixel, no valid mask); the last search
-    uses the settings' method.  Other arguments as for `decode`.
+    uses the settings' method.  ``validity="auto"`` means the "confidence" rule here.  Other
+    arguments as for `decode`.
     """
     s = (DEFAULT_SETTINGS if settings is None else settings).replace(**options).replace(levels="refit")
+    if s.validity == "auto":  # the refinement study's rule (the "error" rule refits per candidate itself)
+        s = s.replace(validity="confidence")
     return _decode(frames, white, black, code, s, inverse=inverse, min_disparity=min_disparity,
                    max_disparity=max_disparity, columns=columns, stripe=stripe, bit_depth=bit_depth,
                    iterations=iterations)
@@ -151,18 +163,70 @@ def _decode(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code
     ncols = check_call(code, s, inverse=inverse, columns=columns, stripe=stripe)
     band = band_args(min_disparity, max_disparity)
     stack = validate(frames, white, black, code, inverse=inverse, bit_depth=bit_depth)
+    if s.rule(stack.inverse is not None) == "error":
+        return _decode_error_rule(stack, code, s, ncols=ncols, band=band, stripe=stripe)
     first = s.replace(method="hard" if s.method == "hard" else "soft")
 
     def top1(st: CodedCapture) -> np.ndarray:
         return search_candidates(st, code, first, columns=ncols, band=band, stripe=stripe).candidates[..., 0]
 
-    stack = estimate_levels(stack, code, s.levels, top1, iterations=iterations)
+    stack = estimate_levels(stack, code, "calibration" if s.levels == "auto" else s.levels, top1, iterations=iterations)
     found = search_candidates(stack, code, s, columns=ncols, band=band, stripe=stripe)
     column0, eligible = eligibility(stack, found.candidates, s.min_contrast)
     spatial = spatial_stage(s, found.candidates, found.confidence, column0, eligible, stripe=stripe)
     column, valid = valid_mask(spatial, found.confidence, eligible, s)
     return Decoded(column=column, confidence=found.confidence, valid=valid, candidates=found.candidates,
                    distances=found.distances, stats=found.stats)
+
+
+def band_choices(ncols: int, band: tuple[bool, int, int], stripe: int) -> int:
+    """N of the error rule: the codebook rows a pixel can decode to (all rows in use, or the rows
+    a disparity band of ``max_d - min_d`` camera pixels meets)."""
+    use, lo, hi = band
+    if not use:
+        return ncols
+    return int(max(1, min(ncols, (hi - lo) // stripe + 2)))
+
+
+def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, ncols: int,
+                       band: tuple[bool, int, int], stripe: int) -> Decoded:
+    """The stages under the "error" validity rule (`edge.decode.posterior`): split levels (with
+    ``levels="auto"``), the candidate search, the noise fit, the posterior of the top three, the
+    spatial methods on ``1 - error``, and ``error < max_error``."""
+    scale = np.float32(stack.scale)
+    if s.levels == "refit":
+        first = s.replace(method="hard" if s.method == "hard" else "soft")
+        searched = estimate_levels(stack, code, "refit", lambda st: search_candidates(
+            st, code, first, columns=ncols, band=band, stripe=stripe).candidates[..., 0])
+    elif s.levels == "auto":
+        on, off, first_noise = split_levels(stack.frames, stack.white, stack.black, float(scale),
+                                            prior=(s.sigma_r, s.sigma_s))
+        searched = validate(stack.frames.astype(np.float32) * scale, on, off, code)
+        s = s.replace(sigma_r=float(np.sqrt(first_noise.a)), sigma_s=float(np.sqrt(first_noise.beta)))
+    else:
+        searched = stack
+    found = search_candidates(searched, code, s, columns=ncols, band=band, stripe=stripe)
+    noise = fit_noise(stack.frames, stack.white, stack.black, float(scale), code, found.candidates[..., 0],
+                      prior=(s.sigma_r, s.sigma_s))
+    post = posterior(stack.frames, stack.white, stack.black, float(scale), code, found.candidates, noise,
+                     choices=band_choices(ncols, band, stripe))
+    column0 = np.ascontiguousarray(post.candidates[..., 0])
+    ok = s.max_error
+    if s.method in ("soft", "hard"):
+        valid = (post.error < np.float32(ok)) & (column0 >= 0)
+        column = np.where(valid, column0, -1).astype(np.int32)
+    else:
+        # the order prior / median filter on P(right): anchors and voters meet the target, a
+        # pixel that does not is corrected from its candidates where neighbours support one
+        sp = s.replace(t_high=1.0 - ok, t_low=1.0 - ok)
+        spatial = spatial_stage(sp, post.candidates, (1.0 - post.error).astype(np.float32), column0,
+                                column0 >= 0, stripe=stripe)
+        column = np.where(spatial.valid, spatial.column, -1).astype(np.int32)
+        valid = column >= 0
+    stats = dict(found.stats, noise_a=noise.a, noise_beta=noise.beta, noise_fitted=noise.fitted,
+                 rule="error", levels=s.levels)
+    return Decoded(column=column, confidence=post.confidence, valid=valid, candidates=post.candidates,
+                   distances=post.distances, stats=stats, error=post.error)
 
 
 def decode_capture(capture: CodedCapture, code: Code | None = None, *, settings=None, **overrides) -> Decoded:

@@ -9,11 +9,23 @@ Fields (units: normalised intensity, 1 = full scale of the frame dtype):
 
 * ``method``: "hard" | "soft" | "list" | "median" | "list+median" (see `edge.decode.decoder`).
 * ``metric``: "ml" (heteroscedastic Gaussian likelihood) | "normalized" (the paper's distance).
-* ``levels``: "calibration" (white / black taken as the on / off levels) | "refit" (per-pixel
-  least-squares refit from the code frames, `edge.decode.levels`).
+* ``levels``: "auto" (default: where the "error" rule applies, the search uses each pixel's on /
+  off levels split from its own n + 2 samples and the rule refits them per candidate,
+  `edge.decode.posterior`; elsewhere the calibration frames) | "calibration" (white / black taken as the on /
+  off levels) | "refit" (a first decode, a per-pixel least-squares refit from the code frames and
+  a second decode, `edge.decode.levels`).
+* ``validity``: "auto" (default: "error" for the soft methods on captures without inverse
+  frames, else "confidence") | "error" (valid where the estimated probability that the column is
+  wrong, `edge.decode.posterior`, is below ``max_error``; the noise model is fitted from the
+  capture) | "confidence" (the contrast / confidence thresholds below).
+* ``max_error`` in (0, 1): the error-probability target of the "error" rule (default 0.01: at
+  most about 1 in 100 published columns off by more than one codebook row).
 * ``sigma_r`` > 0, ``sigma_s`` >= 0: read + quantisation sigma and shot-noise coefficient
-  (variance = sigma_r**2 + sigma_s**2 * I).
-* ``min_contrast``: white - black floor; ``min_confidence``: (d2 - d1)/d2 floor.
+  (variance = sigma_r**2 + sigma_s**2 * I) of the search; under the "error" rule a prior only
+  (the rule fits the noise model from the capture's residuals).
+* ``min_contrast``: white - black floor; ``min_confidence``: (d2 - d1)/d2 floor (the
+  "confidence" rule; the "error" rule has no contrast floor: contrast enters the error
+  probability in noise sigmas).
 * ``t_low`` <= ``t_high`` in [0, 1]: spatial-check thresholds (voters / anchors >= t_high; below
   t_low never accepted on spatial support alone).
 * ``spatial_check``: accept confidence in [t_low, min_confidence) where 5x5 neighbours agree.
@@ -33,7 +45,8 @@ from .backends import BACKEND_NAMES
 #: backends from their registry, `edge.decode.backends._MODULES`).
 METHODS = ("hard", "soft", "list", "median", "list+median")
 METRIC_NAMES = ("ml", "normalized")
-LEVELS = ("calibration", "refit")
+LEVELS = ("auto", "calibration", "refit")
+VALIDITY = ("auto", "error", "confidence")
 
 
 @dataclass(frozen=True)
@@ -42,7 +55,7 @@ class DecodeSettings:
 
     method: str = "soft"
     metric: str = "ml"
-    levels: str = "calibration"
+    levels: str = "auto"
     sigma_r: float = 0.01
     sigma_s: float = 0.03
     min_contrast: float = 0.02
@@ -50,15 +63,17 @@ class DecodeSettings:
     t_low: float = 0.05
     t_high: float = 0.3
     spatial_check: bool = True
+    validity: str = "auto"
+    max_error: float = 0.01
     backend: str = "cpu"
 
     def __post_init__(self) -> None:
         for name, allowed in (("method", METHODS), ("metric", METRIC_NAMES), ("levels", LEVELS),
-                              ("backend", BACKEND_NAMES)):
+                              ("validity", VALIDITY), ("backend", BACKEND_NAMES)):
             v = getattr(self, name)
             if v not in allowed:
                 raise ValueError(f"{name}: expected one of {', '.join(allowed)}, got {v!r}")
-        for name in ("sigma_r", "sigma_s", "min_contrast", "min_confidence", "t_low", "t_high"):
+        for name in ("sigma_r", "sigma_s", "min_contrast", "min_confidence", "t_low", "t_high", "max_error"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ValueError(f"{name}: expected a finite number, got {v!r}")
@@ -66,6 +81,8 @@ class DecodeSettings:
             raise ValueError(f"sigma_r, sigma_s: expected sigma_r > 0 and sigma_s >= 0, got {self.sigma_r}, {self.sigma_s}")
         if not (0 <= self.t_low <= self.t_high <= 1):
             raise ValueError(f"t_low, t_high: expected 0 <= t_low <= t_high <= 1, got {self.t_low}, {self.t_high}")
+        if not 0 < self.max_error < 1:
+            raise ValueError(f"max_error: expected a probability in (0, 1), got {self.max_error}")
         if not isinstance(self.spatial_check, bool):
             raise ValueError(f"spatial_check: expected True or False, got {self.spatial_check!r}")
 
@@ -76,6 +93,19 @@ class DecodeSettings:
             raise ValueError(f"decoder settings: unknown option(s) {', '.join(unknown)}; "
                              f"expected any of {', '.join(FIELDS)}")
         return dataclasses.replace(self, **changes) if changes else self
+
+    def rule(self, has_inverse: bool) -> str:
+        """The validity rule these settings apply to a capture with / without inverse frames:
+        "error" or "confidence" (``validity="auto"``: "error" for the soft methods without inverse
+        frames).  "error" with inverse frames raises one ValueError."""
+        if self.validity == "error":
+            if has_inverse:
+                raise ValueError("validity: 'error' expects a capture without inverse frames (its noise "
+                                 "and level model is per sample), got inverse=; use 'confidence' or 'auto'")
+            return "error"
+        if self.validity == "confidence" or has_inverse or self.method == "hard":
+            return "confidence"
+        return "error"
 
     def as_dict(self) -> dict[str, Any]:
         """The settings as a plain dict (field name -> value)."""

@@ -32,9 +32,10 @@ sweep's level sources map onto `DecodeSettings.levels` by `SETTINGS_LEVELS` (``r
 ``"refit"``); rows and reports keep the sweep's names.
 
 Decoder settings of a point (`point_settings`): its method and levels, the camera's noise
-(sigma_r, sigma_s, each at least 1e-4) and ``min_contrast = min_confidence = 0`` (the paper's
-error rate counts every pixel: decode all of them, reject none); the other fields are
-`DEFAULT_SETTINGS`.
+(sigma_r, sigma_s, each at least 1e-4), the "confidence" validity rule with ``min_contrast =
+min_confidence = 0`` (the paper's error rate counts every pixel: decode all of them, reject
+none); the other fields are `DEFAULT_SETTINGS`.  (`decode`'s own defaults, the "error" rule,
+are measured by tools/eval_posterior.py; moving this sweep onto them is open work.)
 
 Every row also holds the error rate per albedo band (`BANDS`).
 
@@ -149,7 +150,7 @@ def point_settings(method: str, levels: str, camera: CameraModel) -> DecodeSetti
     (`SETTINGS_LEVELS`), the camera's noise (floored at 1e-4), no rejection."""
     return DEFAULT_SETTINGS.replace(method=method, levels=SETTINGS_LEVELS[levels],
                                     sigma_r=max(float(camera.sigma_r), 1e-4), sigma_s=max(float(camera.sigma_s), 1e-4),
-                                    min_contrast=0.0, min_confidence=0.0)
+                                    min_contrast=0.0, min_confidence=0.0, validity="confidence")
 
 
 def edge_decoder() -> Decoder:

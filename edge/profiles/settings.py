@@ -251,6 +251,10 @@ class DecoderSettings:
     t_low: float = _f(0.05, lo=0.0, hi=1.0)
     t_high: float = _f(0.3, lo=0.0, hi=1.0)
     spatial_check: bool = _f(True)
+    # The service stays on the contrast / confidence rule until its recordings and the room
+    # simulation are re-made under the error-probability rule (the library's default, "auto").
+    validity: str = _f("confidence")
+    max_error: float = _f(0.01, lo=0.0, hi=1.0, lo_open=True, hi_open=True)
     backend: str = _f("cpu")
 
 

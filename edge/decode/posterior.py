@@ -1,0 +1,392 @@
+"""Self-calibration and the error probability of a decoded column (captures without inverse frames).
+
+Three pure steps over numpy arrays (numba kernels, one pass over the pixels each):
+
+1. `split_levels` (before the search): each pixel's on / off levels from its own n + 2 samples
+   (the n code frames, white, black; all at the same per-frame exposure).  The samples are
+   sorted and split in two where the between-class variance ``k (m - k) (mean_hi - mean_lo)**2``
+   is largest (Otsu's rule on m = n + 2 values); white is one of the "on" and black one of the
+   "off" samples by construction whenever they are the extremes.  Each level is the mean of
+   about m / 2 samples instead of one calibration frame at exposure T / n, so the search is not
+   thrown off by the calibration frames' own noise, and there is no first full decode.  The
+   residuals of the samples about their split level give a first noise model (the binned fit of
+   step 2), which the search uses, so its costs do not depend on the settings' sigmas or on the
+   frames' stated bit depth.  The
+   all-zero codeword still works: its split puts white alone above (and vice versa).
+
+2. `fit_noise` (after the search): per pixel, the least-squares levels of the best candidate c1,
+   ``r_i = b + c * x_i(c1)`` over the m samples (x = symbol / (q - 1), white x = 1, black x = 0),
+   give the residual variance ``s2 = SSR / (m - 2)`` at the pixel's mean level ``mu``.  The noise
+   model ``var(I) = a + beta * I`` (read + shot noise) is fitted to the per-bin medians of
+   ``s2`` over 16 quantile bins of ``mu`` (medians, so wrongly decoded pixels do not inflate it;
+   each divided by the median of chi2_(m-2) / (m-2)), by least squares, with ``a`` floored at the
+   quantisation variance ``(scale**2) / 12`` of integer frames.  The settings' sigma_r / sigma_s are the prior:
+   they are used where fewer than `MIN_FIT_PIXELS` pixels are decoded.
+
+3. `posterior` (the validity stage's input): for each of the three candidates k, the levels are
+   refitted to that candidate (``c >= 0``) and scored by the Gaussian negative log-likelihood
+   ``L_k = sum_i (r_i - mu_i)**2 / v(mu_i) + log v(mu_i)``; the "no pattern" model (one level,
+   ``mu_i = mean(r)``) gets ``L_0``.  With a uniform prior over the N candidate columns
+   (codebook rows in use, or the disparity band's) and even odds of "lit by the pattern" vs
+   "not lit" (shadow, outside the projector), the posterior odds of a competitor are
+   ``exp(-(L_k - L_1) / 2)`` and those of "not lit" ``N * sqrt(m) * exp(-(L_0 - L_1) / 2)``
+   (``sqrt(m)``: the Occam factor of the one extra parameter, the contrast).  The error
+   probability of the decoded (best) column is
+
+       P(wrong) = (sum over far competitors e_k + e_0) / (1 + sum over all competitors e_k + e_0)
+
+   where a competitor is *far* when its row differs from the best by more than one codebook row
+   (a one-row miss is the pattern's own quantisation, not an outlier).  Candidates beyond the
+   top three are not counted (the estimate is a lower bound where they matter).  Candidates come
+   back re-ordered by L_k.
+
+Units: intensities normalised (1 = full scale of the frame dtype), variances in normalised
+units squared.  Shapes: frames (n, H, W), white / black / outputs (H, W), candidates (H, W, 3).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from ..codes import Code
+
+#: Smallest on - off contrast (normalised units) the split levels keep, so that the search
+#: kernels, which need white > black, decode every pixel.
+MIN_CONTRAST = 1e-6
+#: Fewer decoded pixels than this: the noise model is the settings' prior, not a fit.
+MIN_FIT_PIXELS = 500
+#: Quantile bins of the mean level in `fit_noise`.
+NOISE_BINS = 16
+#: Largest log-odds exponent evaluated (exp(-x/2) below e**-350 is 0 in float64 anyway).
+_CLIP = 700.0
+
+
+class Noise(NamedTuple):
+    """Fitted noise model: variance ``a + beta * I`` (normalised units); ``fitted`` False where
+    the prior was used; ``pixels`` the pixels the fit used."""
+
+    a: float
+    beta: float
+    fitted: bool
+    pixels: int
+
+
+class Posterior(NamedTuple):
+    """Output of `posterior` (all (H, W) unless stated).
+
+    candidates: (H, W, 3) int32 rows re-ordered by likelihood (-1 where absent);
+    distances: (H, W, 3) float32 negative log-likelihoods ``L_k`` (inf where absent);
+    error: float32 P(wrong) of candidates[..., 0] (1 where no candidate);
+    confidence: float32 ``(d2 - d1) / d2`` of the Mahalanobis parts ``d_k = sum (r - mu)**2 / v``
+        (the paper's ratio on the refitted candidates; 0 where fewer than two);
+    contrast: float32 on - off level of the best candidate's fit (normalised units).
+    noise: the `Noise` used.
+    """
+
+    candidates: np.ndarray
+    distances: np.ndarray
+    error: np.ndarray
+    confidence: np.ndarray
+    contrast: np.ndarray
+    noise: Noise
+
+
+@njit(cache=True, parallel=True)
+def _split_levels(frames, white, black, scale, out_hi, out_lo, out_s2, out_mu):
+    n, height, width = frames.shape
+    m = n + 2
+    for yy in prange(height):
+        buf = np.empty(m, np.float64)
+        for xx in range(width):
+            for i in range(n):
+                buf[i] = frames[i, yy, xx] * scale
+            buf[n] = white[yy, xx] * scale
+            buf[n + 1] = black[yy, xx] * scale
+            buf.sort()
+            total = 0.0
+            for i in range(m):
+                total += buf[i]
+            best = -1.0
+            hi = buf[m - 1]
+            lo = buf[0]
+            split = 1
+            acc = 0.0
+            for k in range(1, m):
+                acc += buf[k - 1]
+                ml = acc / k
+                mh = (total - acc) / (m - k)
+                score = k * (m - k) * (mh - ml) * (mh - ml)
+                if score > best:
+                    best = score
+                    hi = mh
+                    lo = ml
+                    split = k
+            ssr = 0.0
+            for i in range(m):
+                e = buf[i] - (lo if i < split else hi)
+                ssr += e * e
+            out_s2[yy, xx] = ssr / (m - 2)
+            out_mu[yy, xx] = total / m
+            if hi - lo < 1e-6:
+                hi = lo + 1e-6
+            out_hi[yy, xx] = hi
+            out_lo[yy, xx] = lo
+
+
+def split_levels(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, *,
+                 prior: tuple[float, float] = (0.01, 0.03)) -> tuple[np.ndarray, np.ndarray, Noise]:
+    """Step 1 of the module docstring: (on, off) float32 (H, W) levels in normalised units, and
+    the noise model fitted (as `fit_noise` does) to the residuals of the samples about their
+    split level: the search's noise model, before any decode.
+
+    frames: (n, H, W) raw frames (any real dtype), white / black: (H, W) raw; scale: raw value ->
+    normalised intensity; prior: (sigma_r, sigma_s) where too few pixels.  ``on - off >=
+    MIN_CONTRAST`` everywhere.
+    """
+    h, w = white.shape
+    hi = np.empty((h, w), np.float32)
+    lo = np.empty((h, w), np.float32)
+    s2 = np.empty((h, w), np.float64)
+    mu = np.empty((h, w), np.float64)
+    _split_levels(frames, white, black, np.float64(scale), hi, lo, s2, mu)
+    return hi, lo, _noise_from(s2, mu, frames, scale, prior)
+
+
+@njit(cache=True, inline="always")
+def _gather(frames, white, black, scale, yy, xx, buf):
+    n = frames.shape[0]
+    for i in range(n):
+        buf[i] = frames[i, yy, xx] * scale
+    buf[n] = white[yy, xx] * scale
+    buf[n + 1] = black[yy, xx] * scale
+
+
+@njit(cache=True, inline="always")
+def _fit(buf, xs, row, n, xtab):
+    """Least-squares (b, c) of r = b + c x over the m samples for codebook row `row`."""
+    m = n + 2
+    sx = 1.0
+    sxx = 1.0
+    sr = 0.0
+    sxr = buf[n]
+    for i in range(n):
+        x = xtab[row, i]
+        xs[i] = x
+        sx += x
+        sxx += x * x
+        sxr += x * buf[i]
+    xs[n] = 1.0
+    xs[n + 1] = 0.0
+    for i in range(m):
+        sr += buf[i]
+    den = m * sxx - sx * sx
+    c = (m * sxr - sx * sr) / den if den > 0 else 0.0
+    if c < 0.0:
+        c = 0.0
+    b = (sr - c * sx) / m
+    return b, c
+
+
+@njit(cache=True, parallel=True)
+def _fit_stats(frames, white, black, scale, xtab, cand, out_s2, out_mu):
+    n, height, width = frames.shape
+    m = n + 2
+    for yy in prange(height):
+        buf = np.empty(m, np.float64)
+        xs = np.empty(m, np.float64)
+        for xx in range(width):
+            row = cand[yy, xx, 0]
+            if row < 0:
+                out_s2[yy, xx] = np.nan
+                out_mu[yy, xx] = np.nan
+                continue
+            _gather(frames, white, black, scale, yy, xx, buf)
+            b, c = _fit(buf, xs, row, n, xtab)
+            ssr = 0.0
+            mu = 0.0
+            for i in range(m):
+                mi = b + c * xs[i]
+                e = buf[i] - mi
+                ssr += e * e
+                mu += mi
+            out_s2[yy, xx] = ssr / (m - 2)
+            out_mu[yy, xx] = mu / m
+
+
+def _chi2_median_ratio(k: int) -> float:
+    """Median of chi2_k / k (Wilson-Hilferty)."""
+    return float((1.0 - 2.0 / (9.0 * k)) ** 3)
+
+
+def fit_noise(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, code: Code,
+              best: np.ndarray, *, prior: tuple[float, float]) -> Noise:
+    """Step 2 of the module docstring: the `Noise` of this capture.
+
+    best: (H, W) int codebook rows (-1 = none) of the search; prior: (sigma_r, sigma_s) used where
+    fewer than `MIN_FIT_PIXELS` pixels have a row.
+    """
+    h, w = white.shape
+    s2 = np.empty((h, w), np.float64)
+    mu = np.empty((h, w), np.float64)
+    cand = np.ascontiguousarray(np.broadcast_to(np.asarray(best, np.int32)[..., None], (h, w, 1)))
+    _fit_stats(frames, white, black, np.float64(scale), _xtab(code), cand, s2, mu)
+    return _noise_from(s2, mu, frames, scale, prior)
+
+
+def _noise_from(s2: np.ndarray, mu: np.ndarray, frames: np.ndarray, scale: float, prior: tuple[float, float]) -> Noise:
+    """The binned-median fit of `fit_noise` from per-pixel residual variances `s2` (NaN = none)
+    at mean levels `mu`."""
+    ok = np.isfinite(s2)
+    # variance floor: the quantisation step's (integer frames), else a tiny positive number
+    floor = float(scale) ** 2 / 12.0 if np.issubdtype(frames.dtype, np.integer) else 1e-12
+    prior_noise = Noise(max(float(prior[0]) ** 2, floor), float(prior[1]) ** 2, False, int(ok.sum()))
+    if ok.sum() < MIN_FIT_PIXELS:
+        return prior_noise
+    s2v, muv = s2[ok], mu[ok]
+    edges = np.quantile(muv, np.linspace(0.0, 1.0, NOISE_BINS + 1))
+    idx = np.clip(np.searchsorted(edges, muv, side="right") - 1, 0, NOISE_BINS - 1)
+    corr = _chi2_median_ratio(frames.shape[0])
+    xs, ys, ws = [], [], []
+    for k in range(NOISE_BINS):
+        sel = idx == k
+        if sel.sum() >= 20:
+            xs.append(float(np.median(muv[sel])))
+            ys.append(float(np.median(s2v[sel])) / corr)
+            ws.append(float(sel.sum()))
+    if len(xs) < 2:
+        return prior_noise
+    x, y, wt = np.array(xs), np.array(ys), np.sqrt(np.array(ws))
+    if np.ptp(x) <= 1e-9:
+        return Noise(max(float(np.median(y)), floor), 0.0, True, int(ok.sum()))
+    a, beta = np.linalg.lstsq(np.stack([np.ones_like(x), x], 1) * wt[:, None], y * wt, rcond=None)[0]
+    if beta < 0.0:  # no shot-noise term visible: constant variance
+        a, beta = float(np.median(y)), 0.0
+    return Noise(max(float(a), floor), float(beta), True, int(ok.sum()))
+
+
+@njit(cache=True, inline="always")
+def _nll(buf, xs, row, n, xtab, a, beta, use_row):
+    """(L, Mahalanobis part, contrast) of one hypothesis: codebook row `row` (use_row) or one
+    flat level (not use_row)."""
+    m = n + 2
+    if use_row:
+        b, c = _fit(buf, xs, row, n, xtab)
+    else:
+        b = 0.0
+        for i in range(m):
+            b += buf[i]
+        b /= m
+        c = 0.0
+        for i in range(m):
+            xs[i] = 0.0
+    total = 0.0
+    maha = 0.0
+    for i in range(m):
+        mi = b + c * xs[i]
+        v = a + beta * (mi if mi > 0.0 else 0.0)
+        e = buf[i] - mi
+        q = e * e / v
+        maha += q
+        total += q + np.log(v)
+    return total, maha, c
+
+
+@njit(cache=True, parallel=True)
+def _posterior(frames, white, black, scale, xtab, cand, a, beta, log_prior_flat,
+               out_cand, out_dist, out_err, out_conf, out_contrast):
+    n, height, width = frames.shape
+    m = n + 2
+    for yy in prange(height):
+        buf = np.empty(m, np.float64)
+        xs = np.empty(m, np.float64)
+        lk = np.empty(3, np.float64)
+        mk = np.empty(3, np.float64)
+        ck = np.empty(3, np.float64)
+        rk = np.empty(3, np.int32)
+        for xx in range(width):
+            _gather(frames, white, black, scale, yy, xx, buf)
+            count = 0
+            for k in range(3):
+                row = cand[yy, xx, k]
+                if row < 0:
+                    continue
+                total, maha, c = _nll(buf, xs, row, n, xtab, a, beta, True)
+                # insertion by likelihood (ties keep the search's order)
+                j = count
+                while j > 0 and lk[j - 1] > total:
+                    lk[j] = lk[j - 1]
+                    mk[j] = mk[j - 1]
+                    ck[j] = ck[j - 1]
+                    rk[j] = rk[j - 1]
+                    j -= 1
+                lk[j] = total
+                mk[j] = maha
+                ck[j] = c
+                rk[j] = row
+                count += 1
+            for k in range(3):
+                if k < count:
+                    out_cand[yy, xx, k] = rk[k]
+                    out_dist[yy, xx, k] = lk[k]
+                else:
+                    out_cand[yy, xx, k] = -1
+                    out_dist[yy, xx, k] = np.inf
+            if count == 0:
+                out_err[yy, xx] = 1.0
+                out_conf[yy, xx] = 0.0
+                out_contrast[yy, xx] = 0.0
+                continue
+            l0, _, _ = _nll(buf, xs, 0, n, xtab, a, beta, False)
+            e0 = min((l0 - lk[0]) * 0.5 - log_prior_flat, _CLIP)
+            flat = np.exp(-e0) if e0 > -_CLIP else np.exp(_CLIP)
+            far = 0.0
+            every = 0.0
+            ek = 0.0
+            for k in range(1, count):
+                ek = np.exp(-min((lk[k] - lk[0]) * 0.5, _CLIP))
+                every += ek
+                if abs(rk[k] - rk[0]) > 1:
+                    far += ek
+            out_err[yy, xx] = (far + flat) / (1.0 + every + flat)
+            out_conf[yy, xx] = (mk[1] - mk[0]) / mk[1] if count > 1 and mk[1] > mk[0] else 0.0
+            out_contrast[yy, xx] = ck[0]
+
+
+_XTAB: dict[int, np.ndarray] = {}
+
+
+def _xtab(code: Code) -> np.ndarray:
+    """(size, n) float64 symbol / (q - 1) of every codeword (cached per code object)."""
+    key = id(code)
+    tab = _XTAB.get(key)
+    if tab is None or tab.shape != (code.size, code.n):
+        tab = np.ascontiguousarray(code.codebook, np.float64) / float(code.q - 1)
+        _XTAB[key] = tab
+    return tab
+
+
+def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, code: Code,
+              candidates: np.ndarray, noise: Noise, *, choices: int) -> Posterior:
+    """Step 3 of the module docstring.
+
+    frames (n, H, W), white / black (H, W): the raw capture (``scale`` to normalised units);
+    candidates: (H, W, 3) int32 rows of the search; noise: `fit_noise`'s model; choices: N, the
+    number of columns a pixel could have decoded to (codebook rows in use, or the rows of the
+    disparity band), >= 1.
+    """
+    if choices < 1:
+        raise ValueError(f"choices: expected >= 1 candidate columns, got {choices}")
+    h, w = white.shape
+    cand = np.ascontiguousarray(candidates, np.int32)
+    out_cand = np.empty((h, w, 3), np.int32)
+    out_dist = np.empty((h, w, 3), np.float32)
+    err = np.empty((h, w), np.float32)
+    conf = np.empty((h, w), np.float32)
+    contrast = np.empty((h, w), np.float32)
+    log_prior_flat = float(np.log(choices) + 0.5 * np.log(frames.shape[0] + 2))
+    _posterior(frames, white, black, np.float64(scale), _xtab(code), cand, float(noise.a), float(noise.beta),
+               log_prior_flat, out_cand, out_dist, err, conf, contrast)
+    return Posterior(out_cand, out_dist, err, conf, contrast, noise)
