@@ -359,7 +359,8 @@ def check_staged_fallback(name):
     """Stacks that were not staged decode by whole-stack upload, with the same results: a stack
     with a dropped frame (never decoded: the next one is staged), a stack re-assembled from new
     Frame objects, a stack whose first frames the hook never saw, a stack captured while the
-    only set was busy, and a complete set reclaimed by a newer stack."""
+    only set was busy, and a complete set reclaimed by a newer stack; a stack of another frame
+    shape re-allocates the idle sets and is staged."""
     from edge.decode.backends.cuda.staging import FrameStager
     from edge.runtime.assembly import Stack, StackAssembler
 
@@ -410,6 +411,10 @@ def check_staged_fallback(name):
     ok &= gpu_pipe.stager.counters["sets_reclaimed"] == 1
     expect(c, False, "set reclaimed")
     expect(d, True, "the reclaiming stack")
+    # 5. frames of another shape: the idle sets are re-allocated for it
+    e = push(stack_frames(gpu_pipe, stacks_for(gpu_pipe.code, 1, w=20)[0], 8, 8 * m))
+    ok &= gpu_pipe.stager.shape == (3, 20)
+    expect(e, True, "new frame shape")
     emit(name, ok, "; ".join(details))
 
 
@@ -479,9 +484,12 @@ def check_staged_threads(name):
 
 
 def check_service_staged(name):
-    """The Service (capture thread + its one decode thread) with backend "cuda": the assembler
-    hands frames to the pipeline's stager, stacks decode from their staged sets (status
-    ``gpu_stacks_staged``) and the published columns equal the CPU pipeline's."""
+    """The Service (capture thread + its one decode thread) with backend "cuda": the pinned sets
+    are allocated before the first frame (``prepare_capture``), the assembler hands frames to
+    the pipeline's stager, and a live config change (min_confidence, sent with the first frame)
+    keeps the staged frames (``continue_from``): every stack decodes from its staged set (status
+    ``gpu_stacks_staged``) and the published columns equal the CPU pipeline's with the new
+    settings."""
     from _service_helpers import load_test_profile
 
     from edge.runtime.pipeline import DepthPipeline
@@ -497,6 +505,7 @@ def check_service_staged(name):
     imgs = stacks_for(pipe.code, 3)
     m = len(pipe.schedule)
     frames = [f for k, images in enumerate(imgs) for f in stack_frames(pipe, images, k, k * m)]
+    seen = {}
 
     class ListSensor:
         info = SensorInfo(name="list", width=24, height=3, bits=8, fps=0.0, n_code_frames=pipe.n)
@@ -510,6 +519,9 @@ def check_service_staged(name):
         def read(self, timeout_s=1.0):
             if not self.frames:
                 raise EndOfStream()
+            if len(self.frames) == len(frames):
+                seen["prepared"] = svc.pipeline.stager.shape == (3, 24)
+                svc.update_config({"decoder": {"min_confidence": 0.35}})
             time.sleep(0.01)
             return self.frames.pop(0)
 
@@ -533,15 +545,19 @@ def check_service_staged(name):
     svc = Service(profile, ListSensor(), sinks=[sink], queue_capacity=8, pipeline_factory=NoWarmUp,
                   warm_variants=False)
     status = svc.run(stacks=3)
-    cpu_pipe = DepthPipeline(load_test_profile())
-    by_id = {k: images for k, images in enumerate(imgs)}
-    good = len(sink.results) == 3 and status.get("gpu_stacks_staged", 0) >= 1
+    cpu_pipe = DepthPipeline(load_test_profile(decoder={"min_confidence": 0.35}))
+    old_pipe = DepthPipeline(load_test_profile())
+    good = len(sink.results) == 3 and status.get("gpu_stacks_staged") == 3 and seen.get("prepared")
+    differs = False
     for r in sink.results:
-        images = by_id[r.stack]
+        images = imgs[r.stack]
         ref = cpu_pipe.decode(images[:-2], images[-2], images[-1])
+        old = old_pipe.decode(images[:-2], images[-2], images[-1])
         good &= np.array_equal(np.where(cpu_pipe.validity(ref), ref.column, -1), r.column)
-    emit(name, good, f"{len(sink.results)} results, staged {status.get('gpu_stacks_staged')}, whole "
-                     f"{status.get('gpu_stacks_uploaded_whole')}, errors {status.get('errors')!r}")
+        differs |= not np.array_equal(ref.valid, old.valid)
+    emit(name, good and differs, f"{len(sink.results)} results, staged {status.get('gpu_stacks_staged')}, whole "
+                                 f"{status.get('gpu_stacks_uploaded_whole')}, prepared {seen.get('prepared')}, "
+                                 f"settings matter {differs}, errors {status.get('errors')!r}")
 
 
 def main() -> int:

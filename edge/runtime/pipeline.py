@@ -77,8 +77,10 @@ class DepthPipeline:
         #: CUDA backend, when every stack image is one camera frame (no source code), a
         #: `FrameStager` that uploads each frame as it is captured, so `process` decodes a
         #: complete stack from its staged set (the decode waits only for that set's stream) and
-        #: uploads the stack whole only when it was not staged (a dropped / reclaimed set, the
-        #: first stack after a pipeline change, a stack not from the service's assembler).
+        #: uploads the stack whole only when it was not staged (a dropped frame, a busy /
+        #: reclaimed set, a stack not from the service's assembler).  The service allocates the
+        #: sets before capture (`prepare_capture`) and a new pipeline keeps the previous one's
+        #: staged frames (`continue_from`).
         self.on_frame = None
         self.stager = None
         if self.settings.backend != "cpu" and get_backend(self.settings.backend).__name__.endswith(".cuda"):
@@ -92,6 +94,24 @@ class DepthPipeline:
             if self.source_bits is None and self.schedule.size == self.n + 2:
                 self.stager = FrameStager(self.n + 2)
                 self.on_frame = self.stager.put
+
+    def continue_from(self, previous) -> None:
+        """Take over `previous` pipeline's staged frames (the service swaps pipelines between
+        stacks, e.g. a live config change): when both stage frames of the same stack layout,
+        this pipeline uses the previous `FrameStager` (raw frames: independent of the decoder
+        settings), so a stack staged before the change still decodes from its staged set and no
+        pinned memory is allocated again."""
+        old = getattr(previous, "stager", None)
+        if self.stager is not None and old is not None and old.slots == self.stager.slots:
+            self.stager = old
+            self.on_frame = old.put
+
+    def prepare_capture(self, height: int, width: int, bits: int) -> None:
+        """Before capture starts (the service, once the sensor is open): allocate the CUDA
+        backend's pinned buffer sets for (height, width) frames of `bits` bits, so the capture
+        thread's first frame does not wait for the allocation.  No-op without a stager."""
+        if self.stager is not None:
+            self.stager.prepare((int(height), int(width)), np.uint8 if int(bits) <= 8 else np.uint16)
 
     # -- stages ---------------------------------------------------------------------------
     def despread(self, images: np.ndarray) -> np.ndarray:

@@ -262,7 +262,12 @@ class Service:
     def _use_pipeline(self, pipeline) -> None:
         """Decode with `pipeline` from the next stack on; its capture hook (``on_frame``, e.g. the
         CUDA backend's per-frame uploads; None for the CPU backend) gets the frames assembled from
-        now on.  Stacks staged by the previous pipeline's hook decode by whole-stack upload."""
+        now on.  A pipeline with ``continue_from(previous)`` takes over the previous one's staged
+        frames (`DepthPipeline.continue_from`); otherwise stacks staged by the previous pipeline's
+        hook decode by whole-stack upload."""
+        carry = getattr(pipeline, "continue_from", None)
+        if carry is not None and pipeline is not self.pipeline:
+            carry(self.pipeline)
         self.pipeline = pipeline
         self.assembler.on_frame = getattr(pipeline, "on_frame", None)
 
@@ -515,6 +520,10 @@ class Service:
         self._sensor_started = True  # stop() it even if start() fails half-way
         self.sensor.start()
         self._use_device_geometry()  # a sensor's own calibration replaces the profile's geometry
+        prepare = getattr(self.pipeline, "prepare_capture", None)
+        if prepare is not None:  # e.g. the CUDA backend's pinned buffers, before the first frame
+            info = self.sensor.info
+            prepare(info.height, info.width, info.bits)
         if self.recorder is None and self.recorder_factory is not None:
             self.recorder = self.recorder_factory()  # the file exists only once capture can start
         self._threads = [

@@ -165,8 +165,9 @@ class FrameStager:
 
     slots: frames per stack (n + 2: code frames, white, black; no inverse frames); sets: buffer
     sets (3: one decoding, one complete stack waiting in the queue, one filling).  The sets are
-    allocated for the first frame's shape and dtype (uint8 / uint16); frames of another shape or
-    dtype are not staged.
+    allocated by `prepare` (the pipeline's warm-up, for the camera's shape and dtype) or for the
+    first frame's shape and dtype (uint8 / uint16); a stack starting with frames of another
+    shape / dtype re-allocates them when no set is busy, else it is not staged.
 
     Invariants (one capture thread calls `put`, one decode thread `decode_frames`; `_lock`
     guards the set states):
@@ -224,15 +225,34 @@ class FrameStager:
             self.error = f"{type(exc).__name__}: {exc}"
             self._filling = None
 
+    def prepare(self, shape: tuple[int, int], dtype: Any) -> bool:
+        """Allocate the sets for (H, W) frames of `dtype` now (the service's warm-up: not on the
+        capture thread's first frame).  Returns False (nothing allocated) for a dtype that is not
+        staged or while a set is busy."""
+        with self._lock:
+            return self._allocate((int(shape[0]), int(shape[1])), np.dtype(dtype))
+
+    def _allocate(self, shape: tuple[int, int], dtype: np.dtype) -> bool:
+        """Sets for this shape / dtype (lock held); a different one replaces idle sets (their
+        staged stacks are dropped: they decode by whole-stack upload)."""
+        if self._sets and shape == self.shape and dtype == self.dtype:
+            return True
+        if dtype not in STAGED_DTYPES or min(shape) < 1 or any(self._busy):
+            return False
+        self._sets = []  # released before the new pinned memory is taken
+        self._sets = [StagingSet(self.slots, shape, dtype) for _ in range(self.nsets)]
+        self.shape, self.dtype = shape, dtype
+        self._frames, self._stack = [None] * self.nsets, [None] * self.nsets
+        self._done_at, self._filling = [0] * self.nsets, None
+        return True
+
     def _put(self, index: int, frame: Any) -> None:
         image = np.asarray(frame.image)
-        if not self._sets:
-            if image.ndim != 2 or image.dtype not in STAGED_DTYPES or not 0 <= index < self.slots:
-                self.counters["frames_skipped"] += 1
-                return
-            self.shape, self.dtype = (int(image.shape[0]), int(image.shape[1])), image.dtype
-            self._sets = [StagingSet(self.slots, self.shape, self.dtype) for _ in range(self.nsets)]
-        if image.shape != self.shape or image.dtype != self.dtype or not 0 <= index < self.slots:
+        if not 0 <= index < self.slots or image.ndim != 2:
+            self.counters["frames_skipped"] += 1
+            return
+        shape = (int(image.shape[0]), int(image.shape[1]))
+        if (shape != self.shape or image.dtype != self.dtype) and not (index == 0 and self._allocate(shape, image.dtype)):
             self.counters["frames_skipped"] += 1
             return
         if index == 0:
