@@ -219,7 +219,8 @@ class DepthPipeline:
             codes, white, black = cap.frames, cap.white, cap.black
             decoded = self.decode(codes, white, black)
         if self.stager is not None:  # CUDA: how the stack reached the device (summed in the service status)
-            stats = {"gpu_stacks_staged": 0 if images is not None else 1, "gpu_stacks_uploaded_whole": int(images is not None)}
+            whole = int(images is not None)
+            stats = {"gpu_stacks_staged": 1 - whole, "gpu_stacks_uploaded_whole": whole}
         valid = self.validity(decoded)
         column = np.where(valid, np.asarray(decoded.column, dtype=np.int32), np.int32(-1))
         confidence = np.asarray(decoded.confidence, dtype=np.float32)

@@ -35,7 +35,8 @@ from ....capture import CodedCapture  # noqa: E402
 from .cost import SIM  # noqa: E402
 from .device import DeviceStack, hard_device, search_device, upload  # noqa: E402
 
-__all__ = ["SIM", "DeviceStack", "FrameStager", "Staging", "decode_whole", "hard", "is_available", "search", "staging_for", "upload"]
+__all__ = ["SIM", "DeviceStack", "FrameStager", "Staging", "decode_whole", "hard", "is_available", "search",
+           "staging_for", "upload"]
 
 
 def is_available() -> bool:

@@ -165,8 +165,8 @@ class FrameStager:
 
     slots: frames per stack (n + 2: code frames, white, black; no inverse frames); sets: buffer
     sets (3: one decoding, one complete stack waiting in the queue, one filling).  The sets are
-    allocated by `prepare` (the pipeline's warm-up, for the camera's shape and dtype) or for the
-    first frame's shape and dtype (uint8 / uint16); a stack starting with frames of another
+    allocated by `prepare` (the service, before capture starts: `DepthPipeline.prepare_capture`,
+    the sensor's shape and dtype) or else for the first frame's shape and dtype (uint8 / uint16); a stack starting with frames of another
     shape / dtype re-allocates them when no set is busy, else it is not staged.
 
     Invariants (one capture thread calls `put`, one decode thread `decode_frames`; `_lock`
@@ -226,8 +226,8 @@ class FrameStager:
             self._filling = None
 
     def prepare(self, shape: tuple[int, int], dtype: Any) -> bool:
-        """Allocate the sets for (H, W) frames of `dtype` now (the service's warm-up: not on the
-        capture thread's first frame).  Returns False (nothing allocated) for a dtype that is not
+        """Allocate the sets for (H, W) frames of `dtype` now (before capture: not on the capture
+        thread's first frame).  Returns False (nothing allocated) for a dtype that is not
         staged or while a set is busy."""
         with self._lock:
             return self._allocate((int(shape[0]), int(shape[1])), np.dtype(dtype))
@@ -252,7 +252,8 @@ class FrameStager:
             self.counters["frames_skipped"] += 1
             return
         shape = (int(image.shape[0]), int(image.shape[1]))
-        if (shape != self.shape or image.dtype != self.dtype) and not (index == 0 and self._allocate(shape, image.dtype)):
+        other = shape != self.shape or image.dtype != self.dtype
+        if other and not (index == 0 and self._allocate(shape, image.dtype)):  # re-allocate at a stack start
             self.counters["frames_skipped"] += 1
             return
         if index == 0:
