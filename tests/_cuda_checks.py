@@ -216,8 +216,9 @@ def check_staging(name, code_name, *, h, w):
 
 
 def check_runtime_pipeline(name):
-    """The runtime's DepthPipeline with ``[decoder] backend = "cuda"`` decodes through `Staging`
-    and returns the CPU pipeline's columns / confidence / valid mask."""
+    """The runtime's DepthPipeline with ``[decoder] backend = "cuda"`` decodes arrays through
+    `Staging` and returns the CPU pipeline's columns / confidence / valid mask (and nothing else:
+    candidates / distances are not downloaded, None)."""
     from _service_helpers import load_test_profile
 
     from edge.decode.backends.cuda import staging
@@ -227,12 +228,336 @@ def check_runtime_pipeline(name):
     gpu_pipe = DepthPipeline(load_test_profile(decoder={"backend": "cuda"}))
     code = cpu_pipe.code
     h, w = 3, 24
-    cap, white, black = capture(code, h, w, band_center=8, dark=0.05)
+    cap, white, black = capture(code, h, w, band_center=-30, dark=0.05)
     ref = cpu_pipe.decode(cap.frames, white, black)
     staging._CACHE.clear()
     got = gpu_pipe.decode(cap.frames, white, black)
-    ok = all(np.array_equal(getattr(ref, f), getattr(got, f)) for f in FIELDS) and len(staging._CACHE) == 1
+    ok = all(np.array_equal(getattr(ref, f), getattr(got, f)) for f in HOST) and len(staging._CACHE) == 1
+    ok &= got.candidates is None and got.distances is None and int(ref.valid.sum()) > 0
     emit(name, ok, f"code {code.name}, staged {len(staging._CACHE)}, valid {int(ref.valid.sum())}")
+
+
+HOST = ("column", "confidence", "valid")
+
+
+class Downloads:
+    """Counts the arrays `pipeline.finish` copies back (the `pipeline.to_host` seam)."""
+
+    def __init__(self):
+        from edge.decode.backends.cuda import pipeline as gp
+
+        self.gp, self.real, self.names, self.bytes = gp, gp.to_host, [], 0
+
+    def __enter__(self):
+        def counting(name, array, stream=0):
+            out = self.real(name, array, stream)
+            self.names.append(name)
+            self.bytes += out.nbytes
+            return out
+
+        self.gp.to_host = counting
+        return self
+
+    def __exit__(self, *exc):
+        self.gp.to_host = self.real
+
+
+def check_reduced_download(name):
+    """The runtime's GPU path copies back only column, confidence and valid (candidates /
+    distances never leave the device), with the CPU's values; the library's decode(...,
+    backend="cuda") still downloads and returns the full Decoded; "list+median" downloads what its
+    host filters need but not the distances."""
+    from _service_helpers import load_test_profile
+
+    from edge.runtime.pipeline import DepthPipeline
+
+    code = get_code("ecc-22-10")
+    h, w = 3, 24
+    cap, white, black = capture(code, h, w, band_center=-30, dark=0.05)
+    details, ok = [], True
+    for method in ("soft", "list+median"):
+        cpu_pipe = DepthPipeline(load_test_profile(decoder={"method": method}))
+        gpu_pipe = DepthPipeline(load_test_profile(decoder={"method": method, "backend": "cuda"}))
+        ref = cpu_pipe.decode(cap.frames, white, black)
+        with Downloads() as dl:
+            got = gpu_pipe.decode(cap.frames, white, black)
+        expect = ["column", "confidence", "valid"] if method == "soft" else ["candidates", "confidence", "column0",
+                                                                            "eligible"]
+        same = all(np.array_equal(getattr(ref, f), getattr(got, f)) for f in HOST)
+        ok &= same and sorted(dl.names) == sorted(expect) and got.candidates is None and got.distances is None
+        ok &= dl.bytes == got.stats["download_bytes"] and int(ref.valid.sum()) > 0
+        details.append(f"{method}: downloaded {dl.names} ({dl.bytes} B), same {same}")
+        with Downloads() as full:  # the library's decode: the whole Decoded, bit for bit
+            lib = decode(cap.frames, white, black, code, backend="cuda", method=method, min_disparity=-44,
+                         max_disparity=-16, columns=cpu_pipe.columns)
+        lref = decode(cap.frames, white, black, code, method=method, min_disparity=-44, max_disparity=-16,
+                      columns=cpu_pipe.columns)
+        ok &= "distances" in full.names and "candidates" in full.names and full.bytes > dl.bytes
+        ok &= all(np.array_equal(getattr(lref, f), getattr(lib, f)) for f in FIELDS)
+        details.append(f"library: {full.names} ({full.bytes} B)")
+    emit(name, ok, "; ".join(details))
+
+
+def stack_frames(pipe, images, stack, seq0):
+    """Frame objects of one stack (schedule order) with these (n + 2, H, W) images."""
+    from edge.sensors.base import Frame
+
+    return [Frame(image=images[i], sequence=seq0 + i, timestamp_ns=1000 * (seq0 + i), exposure_us=100.0,
+                  projector_frame=int(pipe.schedule[i]), stack=stack) for i in range(len(pipe.schedule))]
+
+
+def stacks_for(code, count, h=3, w=24):
+    """`count` different (n + 2, H, W) uint8 stacks (seeds 10..), some pixels dark."""
+    out = []
+    for k in range(count):
+        cap, white, black = capture(code, h, w, band_center=-30, dark=0.05, seed=10 + k)
+        out.append(np.concatenate([cap.frames, white[None], black[None]]))
+    return out
+
+
+def same_result(a, b) -> bool:
+    return all(np.array_equal(getattr(a, f), getattr(b, f)) for f in ("column", "confidence", "depth_mm"))
+
+
+def pipes():
+    from _service_helpers import load_test_profile
+
+    from edge.runtime.pipeline import DepthPipeline
+
+    return DepthPipeline(load_test_profile()), DepthPipeline(load_test_profile(decoder={"backend": "cuda"}))
+
+
+def check_staged_frames(name):
+    """Frames fed one by one through the assembler's hook: a staged stack decodes to the CPU
+    pipeline's depth, column and confidence, identical to the whole-stack upload of the same
+    stack; the decode downloads only column / confidence / valid."""
+    from edge.runtime.assembly import StackAssembler
+
+    cpu_pipe, gpu_pipe = pipes()
+    assert gpu_pipe.on_frame is not None and cpu_pipe.on_frame is None
+    asm = StackAssembler(gpu_pipe.schedule, on_frame=gpu_pipe.on_frame)
+    ok, details = True, []
+    m = len(gpu_pipe.schedule)
+    for k, images in enumerate(stacks_for(gpu_pipe.code, 3)):
+        stack = None
+        for f in stack_frames(gpu_pipe, images, k, k * m):
+            stack = asm.push(f) or stack
+        ref = cpu_pipe.process(stack)
+        with Downloads() as dl:
+            got = gpu_pipe.process(stack)
+        whole = gpu_pipe.decode(images[:-2], images[-2], images[-1])  # the whole-stack upload
+        ok &= same_result(ref, got) and got.stats == {"gpu_stacks_staged": 1, "gpu_stacks_uploaded_whole": 0}
+        ok &= np.array_equal(np.where(whole.valid, whole.column, -1), got.column)
+        ok &= sorted(dl.names) == ["column", "confidence", "valid"] and int((got.column >= 0).sum()) > 0
+        details.append(f"stack {k}: {got.stats}, valid {int((got.column >= 0).sum())}")
+    st = gpu_pipe.stager
+    ok &= st.counters["stacks_taken"] == 3 and st.counters["frames_skipped"] == 0 and not st.error
+    emit(name, ok, "; ".join(details) + f"; counters {st.counters}")
+
+
+def check_staged_fallback(name):
+    """Stacks that were not staged decode by whole-stack upload, with the same results: a stack
+    with a dropped frame (never decoded: the next one is staged), a stack re-assembled from new
+    Frame objects, a stack whose first frames the hook never saw, a stack captured while the
+    only set was busy, and a complete set reclaimed by a newer stack; a stack of another frame
+    shape re-allocates the idle sets and is staged."""
+    from edge.decode.backends.cuda.staging import FrameStager
+    from edge.runtime.assembly import Stack, StackAssembler
+
+    cpu_pipe, gpu_pipe = pipes()
+    m = len(gpu_pipe.schedule)
+    imgs = stacks_for(gpu_pipe.code, 6)
+    asm = StackAssembler(gpu_pipe.schedule, on_frame=gpu_pipe.on_frame)
+    ok, details = True, []
+
+    def push(frames):
+        out = None
+        for f in frames:
+            out = asm.push(f) or out
+        return out
+
+    def expect(stack, staged, label):
+        nonlocal ok
+        got = gpu_pipe.process(stack)
+        good = same_result(cpu_pipe.process(stack), got) and got.stats["gpu_stacks_staged"] == int(staged)
+        ok &= good
+        details.append(f"{label}: {'staged' if staged else 'whole'} {good}")
+
+    # 1. a dropped frame: the assembler drops stack 0, stack 1 is staged
+    fr = stack_frames(gpu_pipe, imgs[0], 0, 0)
+    ok &= push(fr[:5] + fr[6:]) is None
+    expect(push(stack_frames(gpu_pipe, imgs[1], 1, m)), True, "after a dropped stack")
+    # 2. re-assembled (new Frame objects, same images): not the staged frames -> whole upload
+    fr = stack_frames(gpu_pipe, imgs[2], 2, 2 * m)
+    push(fr)
+    expect(Stack(2, tuple(stack_frames(gpu_pipe, imgs[2], 2, 2 * m)), 0), False, "re-assembled")
+    # 3. the hook attached mid-stack (a pipeline change): whole upload
+    asm.on_frame = None
+    fr = stack_frames(gpu_pipe, imgs[3], 3, 3 * m)
+    push(fr[:4])
+    asm.on_frame = gpu_pipe.on_frame
+    expect(push(fr[4:]), False, "hook from frame 4 on")
+    # 4. one set, busy while the next stack is captured; then a complete set reclaimed
+    gpu_pipe.stager = FrameStager(m, sets=1)
+    asm.on_frame = gpu_pipe.stager.put
+    a = push(stack_frames(gpu_pipe, imgs[4], 4, 4 * m))
+    k = gpu_pipe.stager.take(a.frames)  # the decode thread holds the set
+    b = push(stack_frames(gpu_pipe, imgs[5], 5, 5 * m))
+    ok &= k == 0 and gpu_pipe.stager.counters["frames_skipped"] == m
+    gpu_pipe.stager.release(k)
+    expect(b, False, "captured while the set was busy")
+    c = push(stack_frames(gpu_pipe, imgs[0], 6, 6 * m))
+    d = push(stack_frames(gpu_pipe, imgs[1], 7, 7 * m))  # reclaims c's complete set
+    ok &= gpu_pipe.stager.counters["sets_reclaimed"] == 1
+    expect(c, False, "set reclaimed")
+    expect(d, True, "the reclaiming stack")
+    # 5. frames of another shape: the idle sets are re-allocated for it
+    e = push(stack_frames(gpu_pipe, stacks_for(gpu_pipe.code, 1, w=20)[0], 8, 8 * m))
+    ok &= gpu_pipe.stager.shape == (3, 20)
+    expect(e, True, "new frame shape")
+    emit(name, ok, "; ".join(details))
+
+
+def check_staged_threads(name):
+    """A capture thread feeds frames (assembler + hook) while the decode thread decodes: every
+    stack's result equals the CPU pipeline's, the sets are reused (3 sets, 6 stacks).  Paced
+    run: capture starts stack k once stack k - 2 is decoded, so every stack is staged while
+    another decodes; free run: capture as fast as it can, stacks fall back as sets run out."""
+    import threading
+
+    from edge.runtime.assembly import StackAssembler
+    from edge.runtime.stack_queue import Closed, LatestQueue
+
+    cpu_pipe, _ = pipes()
+    imgs = stacks_for(cpu_pipe.code, 6)
+    m = len(cpu_pipe.schedule)
+    ok, details = True, []
+    for paced in (True, False):
+        _, gpu_pipe = pipes()
+        asm = StackAssembler(gpu_pipe.schedule, on_frame=gpu_pipe.on_frame)
+        queue = LatestQueue(8)
+        done = threading.Semaphore(0)
+        results, errors = {}, []
+
+        def capture_loop():
+            try:
+                for k, images in enumerate(imgs):
+                    if paced and k >= 2:
+                        done.acquire()  # stack k - 2 decoded: its set is free again
+                    for f in stack_frames(gpu_pipe, images, k, k * m):
+                        stack = asm.push(f)
+                        if stack is not None:
+                            queue.put(stack)
+            except Exception as exc:
+                errors.append(exc)
+            finally:
+                queue.close()
+
+        def decode_loop():
+            try:
+                while True:
+                    try:
+                        stack = queue.get(1.0)
+                    except Closed:
+                        return
+                    if stack is not None:
+                        results[stack.stack] = (stack, gpu_pipe.process(stack))
+                        done.release()
+            except Exception as exc:
+                errors.append(exc)
+
+        threads = [threading.Thread(target=capture_loop), threading.Thread(target=decode_loop)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(300)
+        staged = sum(r.stats["gpu_stacks_staged"] for _, r in results.values())
+        good = not errors and len(results) == len(imgs)
+        good &= all(same_result(cpu_pipe.process(s), r) for s, r in results.values())
+        if paced:
+            good &= staged == len(imgs) and gpu_pipe.stager.counters["frames_skipped"] == 0
+        good &= not any(gpu_pipe.stager._busy)
+        ok &= good
+        details.append(f"{'paced' if paced else 'free'}: {len(results)} stacks, {staged} staged, ok {good}, "
+                       f"{gpu_pipe.stager.counters} {errors[:1]}")
+    emit(name, ok, "; ".join(details))
+
+
+def check_service_staged(name):
+    """The Service (capture thread + its one decode thread) with backend "cuda": the pinned sets
+    are allocated before the first frame (``prepare_capture``), the assembler hands frames to
+    the pipeline's stager, and a live config change (min_confidence, sent with the first frame)
+    keeps the staged frames (``continue_from``): every stack decodes from its staged set (status
+    ``gpu_stacks_staged``) and the published columns equal the CPU pipeline's with the new
+    settings."""
+    from _service_helpers import load_test_profile
+
+    from edge.runtime.pipeline import DepthPipeline
+    from edge.runtime.service import Service
+    from edge.sensors.base import EndOfStream, SensorInfo
+
+    class NoWarmUp(DepthPipeline):
+        def warm_up(self):
+            return 0.0
+
+    profile = load_test_profile(decoder={"backend": "cuda"})
+    pipe = NoWarmUp(profile)
+    imgs = stacks_for(pipe.code, 3)
+    m = len(pipe.schedule)
+    frames = [f for k, images in enumerate(imgs) for f in stack_frames(pipe, images, k, k * m)]
+    seen = {}
+
+    class ListSensor:
+        info = SensorInfo(name="list", width=24, height=3, bits=8, fps=0.0, n_code_frames=pipe.n)
+
+        def __init__(self):
+            self.frames = list(frames)
+
+        def start(self):
+            pass
+
+        def read(self, timeout_s=1.0):
+            if not self.frames:
+                raise EndOfStream()
+            if len(self.frames) == len(frames):
+                seen["prepared"] = svc.pipeline.stager.shape == (3, 24)
+                svc.update_config({"decoder": {"min_confidence": 0.35}})
+            time.sleep(0.01)
+            return self.frames.pop(0)
+
+        def stop(self):
+            pass
+
+    class Sink:
+        def __init__(self):
+            self.results = []
+
+        def on_result(self, r):
+            self.results.append(r)
+
+        def on_status(self, s):
+            pass
+
+        def close(self):
+            pass
+
+    sink = Sink()
+    svc = Service(profile, ListSensor(), sinks=[sink], queue_capacity=8, pipeline_factory=NoWarmUp,
+                  warm_variants=False)
+    status = svc.run(stacks=3)
+    cpu_pipe = DepthPipeline(load_test_profile(decoder={"min_confidence": 0.35}))
+    old_pipe = DepthPipeline(load_test_profile())
+    good = len(sink.results) == 3 and status.get("gpu_stacks_staged") == 3 and seen.get("prepared")
+    differs = False
+    for r in sink.results:
+        images = imgs[r.stack]
+        ref = cpu_pipe.decode(images[:-2], images[-2], images[-1])
+        old = old_pipe.decode(images[:-2], images[-2], images[-1])
+        good &= np.array_equal(np.where(cpu_pipe.validity(ref), ref.column, -1), r.column)
+        differs |= not np.array_equal(ref.valid, old.valid)
+    emit(name, good and differs, f"{len(sink.results)} results, staged {status.get('gpu_stacks_staged')}, whole "
+                                 f"{status.get('gpu_stacks_uploaded_whole')}, prepared {seen.get('prepared')}, "
+                                 f"settings matter {differs}, errors {status.get('errors')!r}")
 
 
 def main() -> int:
@@ -280,6 +605,11 @@ def main() -> int:
                                                              inverse=True, spatial_check=False)),
         ("staging", lambda: check_staging("staging", "ecc-22-10", h=b[0], w=b[1])),
         ("runtime-pipeline", lambda: check_runtime_pipeline("runtime-pipeline")),
+        ("reduced-download", lambda: check_reduced_download("reduced-download")),
+        ("staged-frames", lambda: check_staged_frames("staged-frames")),
+        ("staged-fallback", lambda: check_staged_fallback("staged-fallback")),
+        ("staged-threads", lambda: check_staged_threads("staged-threads")),
+        ("service-staged", lambda: check_service_staged("service-staged")),
     ]
     only = [a for a in sys.argv[1:] if not a.startswith("--")]
     for name, fn in checks:

@@ -66,7 +66,8 @@ CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inverse"
           "soft-nary3-6", "hard-metric-search-gray-10", "hard-ecc-22-10", "hard-ecc-22-10-inverse-band", "hard-gray-10",
           "validity", "refit-kernels-ecc-22-10", "refit-kernels-rs16-15-4", "decode-soft", "decode-hard",
           "decode-list+median", "decode-soft-refit", "decode-hard-refit-uint16", "decode-soft-inverse-nocheck",
-          "staging", "runtime-pipeline"]
+          "staging", "runtime-pipeline", "reduced-download", "staged-frames", "staged-fallback", "staged-threads",
+          "service-staged"]
 
 
 @pytest.fixture(scope="module")

@@ -105,6 +105,53 @@ def test_assembly_rejects_wrong_projector_frame():
     assert asm.counters.unexpected_frames == 1 and asm.counters.stacks_incomplete == 1
 
 
+def test_assembly_hook_sees_every_accepted_frame_at_its_position():
+    """on_frame(index, frame) is called for each accepted frame with its stack position; a
+    returned Stack holds exactly the frames passed for positions 0..m-1 since the last index 0;
+    a broken stack gets no more calls (its staged frames are never completed)."""
+    sched = stack_schedule(3)
+    calls = []
+    asm = StackAssembler(sched, on_frame=lambda i, f: calls.append((i, f)))
+    f0 = _frames(sched, 0, 0)
+    f1 = _frames(sched, 1, 5)
+    f2 = _frames(sched, 2, 10)
+    done = [asm.push(f) for f in f0[:2]]  # stack 0 loses frame 2
+    done += [asm.push(f) for f in f0[3:]]
+    assert calls == [(0, f0[0]), (1, f0[1])]  # frames after the gap are not accepted
+    out = [asm.push(f) for f in f1] + [asm.push(f) for f in f2]
+    stacks = [s for s in done + out if s is not None]
+    assert [s.stack for s in stacks] == [1, 2]
+    for s in stacks:
+        since = calls[max(i for i, (pos, f) in enumerate(calls) if pos == 0 and f.stack == s.stack):]
+        assert [pos for pos, _ in since][: len(sched)] == list(range(len(sched)))
+        assert all(a is b for (_, a), b in zip(since, s.frames))
+    assert len(calls) == 2 + 2 * len(sched)
+
+
+def test_cpu_backend_has_no_capture_hook_and_imports_no_cuda():
+    """The CPU path is unchanged: the pipeline has no on_frame hook, the service's assembler calls
+    nothing per frame, and no CUDA module is imported (checked in a fresh interpreter)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    script = r"""
+import sys
+sys.path.insert(0, "tests")
+from _service_helpers import load_test_profile
+from edge.runtime.pipeline import DepthPipeline
+p = DepthPipeline(load_test_profile())
+assert p.on_frame is None and p.stager is None, p.on_frame
+bad = sorted(m for m in sys.modules if m.startswith(("edge.decode.backends.cuda", "numba.cuda", "numba_cuda")))
+assert not bad, bad
+print("OK")
+"""
+    proc = subprocess.run([sys.executable, "-c", script], cwd=root, capture_output=True, text=True, timeout=300,
+                          env={**__import__("os").environ, "PYTHONPATH": str(root)})
+    assert proc.returncode == 0 and "OK" in proc.stdout, proc.stderr[-2000:]
+
+
 def test_latest_queue_drops_oldest_and_never_blocks():
     q: LatestQueue[int] = LatestQueue(2)
     assert q.put(1) is None and q.put(2) is None

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -78,10 +79,18 @@ class StackAssembler:
     """Feed frames one by one with `push`; it returns a `Stack` when one completes.
 
     schedule: (m,) projector frame ids of a stack in capture order (`stack_schedule`).
+    on_frame: optional hook ``on_frame(index, frame)`` (the pipeline's, e.g. the CUDA backend's
+    per-frame uploads): called inside `push`, on the pushing thread, for every frame accepted
+    into the stack being assembled, with its position ``index`` (0..m-1, schedule order).  A
+    stack is assembled from position 0 on; a `Stack` that `push` returns holds exactly the
+    Frame objects passed for positions 0..m-1 since the last ``index == 0`` call (of its stack
+    id).  A dropped stack just gets no more calls.  The hook must not raise (an exception would
+    end the capture); None (the default): no call at all.
     """
 
     schedule: np.ndarray
     counters: AssemblyCounters = field(default_factory=AssemblyCounters)
+    on_frame: Callable[[int, Frame], None] | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         self.schedule = np.asarray(self.schedule, dtype=np.int64).reshape(-1)
@@ -130,6 +139,8 @@ class StackAssembler:
             self._frames = []
             return None
         self._frames.append(frame)
+        if self.on_frame is not None:
+            self.on_frame(position, frame)
         if len(self._frames) < self.schedule.size:
             return None
         stack = Stack(frame.stack, tuple(self._frames), time.time_ns() if received_ns is None else received_ns)

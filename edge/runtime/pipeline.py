@@ -6,7 +6,11 @@
    are de-spread into one image (`edge.source.despread`);
 2. split into the n code frames, the white and the black calibration frame;
 3. decoder (`edge.decode.decode`, the profile's method and disparity band), then the profile's
-   validity thresholds (``decoder.min_contrast`` on (white - black), ``decoder.min_confidence``);
+   validity thresholds (``decoder.min_contrast`` on (white - black), ``decoder.min_confidence``).
+   With ``decoder.backend`` "cuda" the frames were uploaded while they were captured (the
+   capture hook `on_frame`, see `DepthPipeline.__init__`) and the decode reads that staged set;
+   a stack that was not staged is uploaded whole; either way only column, confidence and the
+   valid mask come back to the host, with the same values;
 4. EDC (when ``edc.rounds`` > 0): `edge.decode.check` error map and the adaptive loop
    (`edge.edc`), which asks ``masked_capture`` for the next masked frames;
 5. column -> disparity -> depth (`edge.runtime.depth.column_to_depth_mm`, profile geometry).
@@ -59,17 +63,55 @@ class DepthPipeline:
         self.foreign_sources: tuple[str, ...] = ()
         #: the decoder settings of the profile and the decode function of its backend, chosen once
         #: here (a live config change builds a new pipeline): `decode`, or for the CUDA backend
-        #: `decode_staged` (pinned buffers + a stream, same results)
+        #: `decode_staged` (pinned buffers + a stream, same results) downloading only the fields
+        #: the depth uses (column, confidence, valid: `HOST_OUTPUTS`; candidates / distances stay
+        #: on the device and are None in the `Decoded` this pipeline's `decode` returns)
         from edge.decode import decode
         from edge.decode.backends import get as get_backend
         from edge.decode.settings import from_profile
 
         self.settings = from_profile(profile)
         self._decode = decode
+        #: the capture hook ``on_frame(index, frame)`` (`StackAssembler.on_frame`, set by the
+        #: service): None for the CPU backend (nothing is imported or called per frame); for the
+        #: CUDA backend, when every stack image is one camera frame (no source code), a
+        #: `FrameStager` that uploads each frame as it is captured, so `process` decodes a
+        #: complete stack from its staged set (the decode waits only for that set's stream) and
+        #: uploads the stack whole only when it was not staged (a dropped frame, a busy /
+        #: reclaimed set, a stack not from the service's assembler).  The service allocates the
+        #: sets before capture (`prepare_capture`) and a new pipeline keeps the previous one's
+        #: staged frames (`continue_from`).
+        self.on_frame = None
+        self.stager = None
         if self.settings.backend != "cpu" and get_backend(self.settings.backend).__name__.endswith(".cuda"):
-            from edge.decode.backends.cuda.staging import decode_staged
+            import functools
 
-            self._decode = decode_staged
+            from edge.decode.backends.cuda.pipeline import HOST_OUTPUTS
+            from edge.decode.backends.cuda.staging import FrameStager, decode_staged
+
+            self._outputs = HOST_OUTPUTS
+            self._decode = functools.partial(decode_staged, outputs=HOST_OUTPUTS)
+            if self.source_bits is None and self.schedule.size == self.n + 2:
+                self.stager = FrameStager(self.n + 2)
+                self.on_frame = self.stager.put
+
+    def continue_from(self, previous) -> None:
+        """Take over `previous` pipeline's staged frames (the service swaps pipelines between
+        stacks, e.g. a live config change): when both stage frames of the same stack layout,
+        this pipeline uses the previous `FrameStager` (raw frames: independent of the decoder
+        settings), so a stack staged before the change still decodes from its staged set and no
+        pinned memory is allocated again."""
+        old = getattr(previous, "stager", None)
+        if self.stager is not None and old is not None and old.slots == self.stager.slots:
+            self.stager = old
+            self.on_frame = old.put
+
+    def prepare_capture(self, height: int, width: int, bits: int) -> None:
+        """Before capture starts (the service, once the sensor is open): allocate the CUDA
+        backend's pinned buffer sets for (height, width) frames of `bits` bits, so the capture
+        thread's first frame does not wait for the allocation.  No-op without a stager."""
+        if self.stager is not None:
+            self.stager.prepare((int(height), int(width)), np.uint8 if int(bits) <= 8 else np.uint16)
 
     # -- stages ---------------------------------------------------------------------------
     def despread(self, images: np.ndarray) -> np.ndarray:
@@ -97,22 +139,37 @@ class DepthPipeline:
 
     def stacked(self, frames: list[Frame] | tuple[Frame, ...]) -> np.ndarray:
         """Frames of one stack (schedule order) -> (n + 2, H, W): code frames, white, black (de-spread)."""
+        self.check_schedule(frames)
+        return self.despread(np.stack([f.image for f in frames]))
+
+    def check_schedule(self, frames: list[Frame] | tuple[Frame, ...]) -> None:
+        """ValueError unless the frames' projector frame ids follow the profile schedule."""
         ids = np.array([f.projector_frame for f in frames], dtype=np.int64)
         if ids.shape != self.schedule.shape or not np.array_equal(ids % (1 << 16), self.schedule % (1 << 16)):
             raise ValueError(
                 f"stack frames must follow the profile schedule of {self.schedule.size} projector frames, "
                 f"got ids {ids.tolist()[:8]}...")
-        return self.despread(np.stack([f.image for f in frames]))
 
     def decode(self, codes: np.ndarray, white: np.ndarray, black: np.ndarray):
-        """`edge.decode.decode` with the profile's method, noise model, thresholds and disparity band."""
+        """`edge.decode.decode` with the profile's method, noise model, thresholds and disparity band
+        (CUDA backend: only column, confidence and valid are downloaded; the other fields are None)."""
+        return self._decode(codes, white, black, self.code, settings=self.settings,
+                            **self._facts(codes.dtype == np.uint16))
+
+    def _facts(self, uint16: bool) -> dict:
         p = self.profile
-        return self._decode(
-            codes, white, black, self.code, settings=self.settings,
-            min_disparity=p.decoder.min_disparity, max_disparity=p.decoder.max_disparity,
-            columns=self.columns, stripe=self.stripe,
-            bit_depth=p.camera.bits if codes.dtype == np.uint16 else None,
-        )
+        return dict(min_disparity=p.decoder.min_disparity, max_disparity=p.decoder.max_disparity,
+                    columns=self.columns, stripe=self.stripe, bit_depth=p.camera.bits if uint16 else None)
+
+    def decode_staged_stack(self, stack: Stack):
+        """The `Decoded` of `stack` from the frames the capture hook staged (`on_frame`), or None
+        when it was not staged (the caller decodes the stack whole).  Same values as `decode`."""
+        if self.stager is None:
+            return None
+        self.check_schedule(stack.frames)
+        uint16 = self.stager.dtype == np.uint16
+        return self.stager.decode_frames(stack.frames, self.code, self.settings, outputs=self._outputs,
+                                         **self._facts(uint16))
 
     def warm_up(self) -> float:
         """Compile the decoder's numba kernels for this profile before capture starts.
@@ -153,16 +210,23 @@ class DepthPipeline:
     def process(self, stack: Stack, masked_capture: MaskedCaptureFn | None = None) -> DepthResult:
         """Depth for one complete stack (see module docstring)."""
         t0 = time.perf_counter()
-        images = self.stacked(stack.frames)
-        cap = stack.coded(images, self.n, code=self.code, columns=self.columns, stripe=self.stripe,
-                          bit_depth=self.profile.camera.bits if images.dtype == np.uint16 else None)
-        codes, white, black = cap.frames, cap.white, cap.black
-        decoded = self.decode(codes, white, black)
+        images, stats = None, {}
+        decoded = self.decode_staged_stack(stack) if self.stager is not None else None
+        if decoded is None:
+            images = self.stacked(stack.frames)
+            cap = stack.coded(images, self.n, code=self.code, columns=self.columns, stripe=self.stripe,
+                              bit_depth=self.profile.camera.bits if images.dtype == np.uint16 else None)
+            codes, white, black = cap.frames, cap.white, cap.black
+            decoded = self.decode(codes, white, black)
+        if self.stager is not None:  # CUDA: how the stack reached the device (summed in the service status)
+            whole = int(images is not None)
+            stats = {"gpu_stacks_staged": 1 - whole, "gpu_stacks_uploaded_whole": whole}
         valid = self.validity(decoded)
         column = np.where(valid, np.asarray(decoded.column, dtype=np.int32), np.int32(-1))
         confidence = np.asarray(decoded.confidence, dtype=np.float32)
         rounds, extra, round_ms, capture_ms = 0, (), (), ()
         if self.profile.edc.rounds > 0:
+            images = self.stacked(stack.frames) if images is None else images
             edc = self.adaptive(stack, images, column, confidence, masked_capture)
             column, confidence, rounds, extra = edc.column, edc.confidence, edc.rounds, edc.extra
             round_ms, capture_ms = edc.round_ms, edc.capture_ms
@@ -173,6 +237,7 @@ class DepthPipeline:
             received_ns=stack.received_ns, depth_mm=depth, confidence=confidence_to_u8(confidence, depth > 0),
             column=column, decode_s=time.perf_counter() - t0, edc_rounds=rounds, extra_frames=tuple(extra),
             edc_round_ms=tuple(round_ms), edc_capture_ms=tuple(capture_ms), stack_frames=len(stack.frames),
+            stats=stats,
         )
 
     def adaptive(self, stack, images, column, confidence, masked_capture):

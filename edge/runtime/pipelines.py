@@ -6,6 +6,9 @@ A pipeline turns one complete stack into one `edge.runtime.result.DepthResult`::
     pipeline.schedule                          # int64 (frames_per_stack,) projector frame ids it expects
     pipeline.warm_up()                         # compile / prepare before capture; returns seconds
     pipeline.process(stack, masked_capture)    # -> DepthResult (masked_capture: EDC re-capture or None)
+    pipeline.on_frame                          # optional: None or a capture hook (index, frame) that the
+                                               # service's assembler calls per accepted frame (the CUDA
+                                               # backend's uploads during capture, `DepthPipeline`)
 
 The kinds (columns, dots, event-dots, curtain) and their classes are registered in one table,
 `edge.device.PIPELINES`, which the sensors read too (the stack layout of a kind); the classes are

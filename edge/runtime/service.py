@@ -3,7 +3,9 @@
 Threads (all joined by `Service.stop` / at the end of `Service.run`):
 
 * capture: ``sensor.read`` -> recorder (raw frames, non-blocking hand-off) -> `StackAssembler`
-  -> `LatestQueue` (never blocks; a full queue drops its oldest whole stack, counted stale);
+  (which hands each accepted frame to the pipeline's ``on_frame`` hook where it has one: the
+  CUDA backend uploads frames as they arrive) -> `LatestQueue` (never blocks; a full queue
+  drops its oldest whole stack, counted stale);
 * decode: queue -> the profile's pipeline (`make_pipeline`) ``process`` -> every sink's ``on_result`` and the recorder;
   config updates are applied here, between stacks;
 * the calling thread of `run` waits, and hands a status dict to the sinks every
@@ -83,7 +85,7 @@ class Service:
             raise ValueError(
                 f"sensor {sensor.info.name!r} sends stacks of {sensor.info.frames_per_stack} frames, "
                 f"profile {profile.name!r} expects {len(schedule)}")
-        self.assembler = StackAssembler(schedule)
+        self.assembler = StackAssembler(schedule, on_frame=getattr(self.pipeline, "on_frame", None))
         self.queue: LatestQueue = LatestQueue(queue_capacity)
         self.counters = ServiceCounters()
         self._stop = threading.Event()
@@ -257,6 +259,18 @@ class Service:
             self._capture_done.set()
             self.queue.close()
 
+    def _use_pipeline(self, pipeline) -> None:
+        """Decode with `pipeline` from the next stack on; its capture hook (``on_frame``, e.g. the
+        CUDA backend's per-frame uploads; None for the CPU backend) gets the frames assembled from
+        now on.  A pipeline with ``continue_from(previous)`` takes over the previous one's staged
+        frames (`DepthPipeline.continue_from`); otherwise stacks staged by the previous pipeline's
+        hook decode by whole-stack upload."""
+        carry = getattr(pipeline, "continue_from", None)
+        if carry is not None and pipeline is not self.pipeline:
+            carry(self.pipeline)
+        self.pipeline = pipeline
+        self.assembler.on_frame = getattr(pipeline, "on_frame", None)
+
     def _masked_capture(self) -> Callable[[int, int, np.ndarray], list[Frame]] | None:
         if isinstance(self.sensor, MaskedCapture):
             return self.sensor.capture_masked
@@ -279,7 +293,7 @@ class Service:
             with self._lock:
                 pending, self._pending_profile = self._pending_profile, None
             if pending is not None:
-                self.pipeline = pending[1]
+                self._use_pipeline(pending[1])
                 self._change = {"keys": list(pending[2]), "decode_s": []}
             try:
                 result = self.pipeline.process(stack, masked)
@@ -458,7 +472,7 @@ class Service:
         from edge.profiles import apply_update
 
         new = apply_update(self.profile, {"geometry": dict(geometry)}, source=f"{self.profile.source} + device calibration")
-        self.pipeline = self.pipeline_factory(new)
+        self._use_pipeline(self.pipeline_factory(new))
         self.profile = new
         self.geometry_source = "device calibration"
 
@@ -506,6 +520,10 @@ class Service:
         self._sensor_started = True  # stop() it even if start() fails half-way
         self.sensor.start()
         self._use_device_geometry()  # a sensor's own calibration replaces the profile's geometry
+        prepare = getattr(self.pipeline, "prepare_capture", None)
+        if prepare is not None:  # e.g. the CUDA backend's pinned buffers, before the first frame
+            info = self.sensor.info
+            prepare(info.height, info.width, info.bits)
         if self.recorder is None and self.recorder_factory is not None:
             self.recorder = self.recorder_factory()  # the file exists only once capture can start
         self._threads = [

@@ -3,8 +3,10 @@ valid mask on an NVIDIA GPU, with the CPU backend's results bit for bit.
 
 Implements the backend seam of `edge.decode.backends` (``search``, ``hard``) plus
 ``decode_whole`` (levels, search and valid mask on the device, used by `edge.decode.decode`
-for backend "cuda") and `Staging` (pinned host buffers and a stream: frames uploaded as they
-arrive, results copied back once; the service's decode thread uses it).
+for backend "cuda"; ``outputs=`` downloads only some `Decoded` fields), `FrameStager` (pinned
+host buffer sets with a stream each, keyed by stack id: the service's capture thread uploads
+each frame as it arrives, its decode thread decodes the staged set) and `Staging` (the same
+buffers for stacks that arrive whole).
 
 Files by algorithm: `cost` (the shared device-side cost model), `soft` (top-3 over all
 codewords / over a disparity band), `nary` (N-ary codes), `hard` (syndrome decoding),
@@ -33,7 +35,8 @@ from ....capture import CodedCapture  # noqa: E402
 from .cost import SIM  # noqa: E402
 from .device import DeviceStack, hard_device, search_device, upload  # noqa: E402
 
-__all__ = ["SIM", "DeviceStack", "Staging", "decode_whole", "hard", "is_available", "search", "staging_for", "upload"]
+__all__ = ["SIM", "DeviceStack", "FrameStager", "Staging", "decode_whole", "hard", "is_available", "search",
+           "staging_for", "upload"]
 
 
 def is_available() -> bool:
@@ -77,7 +80,7 @@ def __getattr__(name: str):
         from .pipeline import decode_whole
 
         return decode_whole
-    if name in ("Staging", "staging_for"):
+    if name in ("FrameStager", "Staging", "staging_for"):
         from . import staging
 
         return getattr(staging, name)

@@ -2,10 +2,11 @@
 
 `decode_device` runs on a `DeviceStack` and leaves its results on the device; `decode_whole` is
 `edge.decode.decode` for backend "cuda" (the decoder hands the whole call over): the same
-argument checks, one upload, and one download of the outputs.  Methods "soft" / "hard" get
-their valid mask on the device (`validity`); "list" / "median" / "list+median" take the
-device's candidates, confidence and eligibility to the host filters of `edge.decode.spatial`
-(sequential along rows, as the CPU backend does).  ``levels="refit"`` follows
+argument checks, one upload, and one download of the outputs (`finish`: only the `Decoded`
+fields asked for, each array once through `to_host`; the runtime asks for `HOST_OUTPUTS`).
+Methods "soft" / "hard" get their valid mask on the device (`validity`); "list" / "median" /
+"list+median" take the device's candidates, confidence and eligibility to the host filters of
+`edge.decode.spatial` (sequential along rows, as the CPU backend does).  ``levels="refit"`` follows
 `edge.decode.decode_refined` (one refit iteration) with `refit`'s kernels.
 """
 
@@ -94,39 +95,82 @@ def decode_device(ds: DeviceStack, code: Code, s: DecodeSettings, *, columns: in
     return out
 
 
-def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | None = None, *, stripe: int = 1):
-    """Device results of `decode_device` -> `edge.decode.Decoded` (one download of each output;
-    "list" / "median" / "list+median" run the host stages `spatial_stage` + `valid_mask` on the
-    device's candidates, confidence and eligibility).  t0: perf_counter at the upload;
-    stats["seconds"] becomes the time from it to the results on the host.  stripe: projector
-    columns per codebook row (the spatial filters work in projector pixels)."""
+#: The `edge.decode.Decoded` array fields, in order (what `finish` can download).
+FIELDS = ("column", "confidence", "valid", "candidates", "distances")
+#: The fields the service's depth uses (`edge.runtime.pipeline.DepthPipeline`: column, confidence
+#: and the valid mask); the runtime's GPU path downloads only these.
+HOST_OUTPUTS = ("column", "confidence", "valid")
+
+
+def to_host(name: str, array: Any, stream: Any = 0) -> np.ndarray:
+    """One device -> host copy of the output `name` (on `stream`, asynchronous on a real stream).
+
+    Every result `finish` brings back goes through here, one call per array (a seam: tests
+    count the arrays and bytes copied back)."""
+    return array.copy_to_host(stream=stream)
+
+
+def _outputs(outputs) -> frozenset[str]:
+    want = frozenset(outputs)
+    unknown = sorted(want - set(FIELDS))
+    if unknown:
+        raise ValueError(f"outputs: expected names among {', '.join(FIELDS)}, got {unknown}")
+    return want
+
+
+def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | None = None, *, stripe: int = 1,
+           outputs=FIELDS):
+    """Device results of `decode_device` -> `edge.decode.Decoded`, downloading only what is needed.
+
+    outputs: the `Decoded` fields wanted on the host (default all of `FIELDS`; the runtime asks
+    for `HOST_OUTPUTS`).  Fields not in `outputs` are None in the returned `Decoded`.  What is
+    copied back (each array once, through `to_host`): methods "soft" / "hard" download exactly
+    the wanted fields (column, valid come from the device's mask); "list" / "median" /
+    "list+median" download candidates, confidence, column0 and eligible (the host stages
+    `spatial_stage` + `valid_mask` need them) and distances only when wanted.  The values of
+    the fields returned do not depend on `outputs`.  stats gains ``downloaded`` (the names
+    copied back) and ``download_bytes``.  t0: perf_counter at the upload; stats["seconds"]
+    becomes the time from it to the results on the host.  stripe: projector columns per
+    codebook row (the spatial filters work in projector pixels)."""
     from ...decoder import Decoded
     from ...spatial import spatial_stage
     from ...validity import valid_mask
 
-    host = {k: v.copy_to_host(stream=stream) for k, v in out.items() if k != "stats"}
+    want = _outputs(outputs)
+    if s.method in ("soft", "hard"):
+        names = [f for f in FIELDS if f in want]
+    else:
+        names = ["candidates", "confidence", "column0", "eligible"] + (["distances"] if "distances" in want else [])
+    host = {k: to_host(k, out[k], stream) for k in names}
     if stream != 0:
         stream.synchronize()
+    st = out["stats"]
     if t0 is not None:
-        out["stats"]["seconds"] = time.perf_counter() - t0
-    cand, conf = host["candidates"], host["confidence"]
+        st["seconds"] = time.perf_counter() - t0
+    st["downloaded"] = list(names)
+    st["download_bytes"] = int(sum(a.nbytes for a in host.values()))
     if s.method in ("soft", "hard"):
-        return Decoded(column=host["column"], confidence=conf, valid=host["valid"], candidates=cand,
-                       distances=host["distances"], stats=out["stats"])
-    spatial = spatial_stage(s, cand, conf, host["column0"], host["eligible"], stripe=stripe)
-    column, valid = valid_mask(spatial, conf, host["eligible"], s)
-    return Decoded(column=column, confidence=conf, valid=valid, candidates=cand,
-                   distances=host["distances"], stats=out["stats"])
+        column, valid = host.get("column"), host.get("valid")
+    else:
+        spatial = spatial_stage(s, host["candidates"], host["confidence"], host["column0"], host["eligible"],
+                                stripe=stripe)
+        column, valid = valid_mask(spatial, host["confidence"], host["eligible"], s)
+    got = {"column": column, "valid": valid, "confidence": host.get("confidence"),
+           "candidates": host.get("candidates"), "distances": host.get("distances")}
+    return Decoded(**{f: (got[f] if f in want else None) for f in FIELDS}, stats=st)
 
 
 def decode_whole(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code, settings: DecodeSettings, *,
                  inverse: np.ndarray | None = None, min_disparity: float | None = None,
                  max_disparity: float | None = None, columns: int | None = None, stripe: int = 1,
-                 bit_depth: int | None = None):
-    """`edge.decode.decode` on the device (same arguments, same `Decoded`, same results)."""
+                 bit_depth: int | None = None, outputs=FIELDS):
+    """`edge.decode.decode` on the device (same arguments, same `Decoded`, same results).
+
+    outputs: the `Decoded` fields to download (`finish`; default all: the library's full
+    `Decoded`); the others are None."""
     ncols = check_call(code, settings, inverse=inverse, columns=columns, stripe=stripe)
     band = band_args(min_disparity, max_disparity)
     stack = validate(frames, white, black, code, inverse=inverse, bit_depth=bit_depth)
     t0 = time.perf_counter()
     out = decode_device(upload(stack), code, settings, columns=ncols, band=band, stripe=stripe)
-    return finish(out, settings, t0=t0, stripe=stripe)
+    return finish(out, settings, t0=t0, stripe=stripe, outputs=outputs)
