@@ -195,7 +195,9 @@ def check_staging(name, code_name, *, h, w):
 
     code = get_code(code_name)
     cap, white, black = capture(code, h, w, band_center=4, dark=0.05)
-    s = DEFAULT_SETTINGS.replace(backend="cuda")
+    # the device's whole decode runs the contrast / confidence rule (the "error" rule's posterior
+    # runs on the host after the device search, through decode())
+    s = DEFAULT_SETTINGS.replace(backend="cuda", validity="confidence")
     st = Staging(code.n, (h, w), np.uint8)
     ok = True
     for _ in range(3):  # three stacks through the two buffer sets
@@ -204,7 +206,7 @@ def check_staging(name, code_name, *, h, w):
         st.put_white(white)
         st.put_black(black)
         got = st.decode(st.commit(), code, s, min_disparity=0, max_disparity=8)
-        ref = decode(cap.frames, white, black, code, min_disparity=0, max_disparity=8)
+        ref = decode(cap.frames, white, black, code, min_disparity=0, max_disparity=8, validity="confidence")
         ok &= all(np.array_equal(getattr(ref, f), getattr(got, f)) for f in FIELDS)
     try:
         st.put(0, cap.frames[0])
@@ -289,9 +291,9 @@ def check_reduced_download(name):
         details.append(f"{method}: downloaded {dl.names} ({dl.bytes} B), same {same}")
         with Downloads() as full:  # the library's decode: the whole Decoded, bit for bit
             lib = decode(cap.frames, white, black, code, backend="cuda", method=method, min_disparity=-44,
-                         max_disparity=-16, columns=cpu_pipe.columns)
+                         max_disparity=-16, columns=cpu_pipe.columns, validity="confidence")
         lref = decode(cap.frames, white, black, code, method=method, min_disparity=-44, max_disparity=-16,
-                      columns=cpu_pipe.columns)
+                      columns=cpu_pipe.columns, validity="confidence")
         ok &= "distances" in full.names and "candidates" in full.names and full.bytes > dl.bytes
         ok &= all(np.array_equal(getattr(lref, f), getattr(lib, f)) for f in FIELDS)
         details.append(f"library: {full.names} ({full.bytes} B)")
