@@ -58,6 +58,8 @@ from ..codes import Code
 MIN_CONTRAST = 1e-6
 #: Fewer decoded pixels than this: the noise model is the settings' prior, not a fit.
 MIN_FIT_PIXELS = 500
+#: Pixels the noise fit uses at most (`_steps`: a regular subgrid of larger images).
+FIT_PIXELS = 40000
 #: Quantile bins of the mean level in `fit_noise`.
 NOISE_BINS = 16
 #: Largest log-odds exponent evaluated (exp(-x/2) below e**-350 is 0 in float64 anyway).
@@ -105,7 +107,13 @@ def _split_levels(frames, white, black, scale, out_hi, out_lo, out_s2, out_mu):
                 buf[i] = frames[i, yy, xx] * scale
             buf[n] = white[yy, xx] * scale
             buf[n + 1] = black[yy, xx] * scale
-            buf.sort()
+            for i in range(1, m):  # insertion sort: m is small (n + 2 <= 65)
+                v = buf[i]
+                j = i - 1
+                while j >= 0 and buf[j] > v:
+                    buf[j + 1] = buf[j]
+                    j -= 1
+                buf[j + 1] = v
             total = 0.0
             for i in range(m):
                 total += buf[i]
@@ -191,17 +199,20 @@ def _fit(buf, xs, row, n, xtab):
 
 
 @njit(cache=True, parallel=True)
-def _fit_stats(frames, white, black, scale, xtab, cand, out_s2, out_mu):
-    n, height, width = frames.shape
+def _fit_stats(frames, white, black, scale, xtab, best, step_y, step_x, out_s2, out_mu):
+    n = frames.shape[0]
     m = n + 2
-    for yy in prange(height):
+    rows, cols = out_s2.shape
+    for ry in prange(rows):
+        yy = ry * step_y
         buf = np.empty(m, np.float64)
         xs = np.empty(m, np.float64)
-        for xx in range(width):
-            row = cand[yy, xx, 0]
+        for rx in range(cols):
+            xx = rx * step_x
+            row = best[yy, xx]
             if row < 0:
-                out_s2[yy, xx] = np.nan
-                out_mu[yy, xx] = np.nan
+                out_s2[ry, rx] = np.nan
+                out_mu[ry, rx] = np.nan
                 continue
             _gather(frames, white, black, scale, yy, xx, buf)
             b, c = _fit(buf, xs, row, n, xtab)
@@ -212,8 +223,8 @@ def _fit_stats(frames, white, black, scale, xtab, cand, out_s2, out_mu):
                 e = buf[i] - mi
                 ssr += e * e
                 mu += mi
-            out_s2[yy, xx] = ssr / (m - 2)
-            out_mu[yy, xx] = mu / m
+            out_s2[ry, rx] = ssr / (m - 2)
+            out_mu[ry, rx] = mu / m
 
 
 def _chi2_median_ratio(k: int) -> float:
@@ -229,11 +240,25 @@ def fit_noise(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     fewer than `MIN_FIT_PIXELS` pixels have a row.
     """
     h, w = white.shape
-    s2 = np.empty((h, w), np.float64)
-    mu = np.empty((h, w), np.float64)
-    cand = np.ascontiguousarray(np.broadcast_to(np.asarray(best, np.int32)[..., None], (h, w, 1)))
-    _fit_stats(frames, white, black, np.float64(scale), _xtab(code), cand, s2, mu)
+    sy, sx = _steps(h, w)
+    s2 = np.empty(((h + sy - 1) // sy, (w + sx - 1) // sx), np.float64)
+    mu = np.empty_like(s2)
+    _fit_stats(frames, white, black, np.float64(scale), _xtab(code), np.ascontiguousarray(best, np.int32), sy, sx,
+               s2, mu)
     return _noise_from(s2, mu, frames, scale, prior)
+
+
+def _steps(h: int, w: int) -> tuple[int, int]:
+    """Row / column steps of the pixel grid the noise fit uses: every pixel up to
+    `FIT_PIXELS`, else a regular subgrid of about that many (the fit needs thousands, not
+    hundreds of thousands)."""
+    sy = sx = 1
+    while (h // sy) * (w // sx) > FIT_PIXELS:
+        if sy <= sx:
+            sy += 1
+        else:
+            sx += 1
+    return sy, sx
 
 
 def _noise_from(s2: np.ndarray, mu: np.ndarray, frames: np.ndarray, scale: float, prior: tuple[float, float]) -> Noise:
@@ -246,6 +271,9 @@ def _noise_from(s2: np.ndarray, mu: np.ndarray, frames: np.ndarray, scale: float
     if ok.sum() < MIN_FIT_PIXELS:
         return prior_noise
     s2v, muv = s2[ok], mu[ok]
+    if s2v.size > FIT_PIXELS:  # a regular subsample (deterministic), as `_steps`
+        step = -(-s2v.size // FIT_PIXELS)
+        s2v, muv = s2v[::step], muv[::step]
     edges = np.quantile(muv, np.linspace(0.0, 1.0, NOISE_BINS + 1))
     idx = np.clip(np.searchsorted(edges, muv, side="right") - 1, 0, NOISE_BINS - 1)
     corr = _chi2_median_ratio(frames.shape[0])
@@ -282,15 +310,33 @@ def _nll(buf, xs, row, n, xtab, a, beta, use_row):
         c = 0.0
         for i in range(m):
             xs[i] = 0.0
+    # the two levels of a binary code (x = 0 / 1) have one variance each: two logs per hypothesis
+    m1 = b + c
+    v0 = a + beta * (b if b > 0.0 else 0.0)
+    v1 = a + beta * (m1 if m1 > 0.0 else 0.0)
+    l0 = np.log(v0)
+    l1 = np.log(v1)
+    r0 = 1.0 / v0
+    r1 = 1.0 / v1
     total = 0.0
     maha = 0.0
     for i in range(m):
-        mi = b + c * xs[i]
-        v = a + beta * (mi if mi > 0.0 else 0.0)
-        e = buf[i] - mi
-        q = e * e / v
+        x = xs[i]
+        if x == 0.0:
+            e = buf[i] - b
+            q = e * e * r0
+            total += q + l0
+        elif x == 1.0:
+            e = buf[i] - m1
+            q = e * e * r1
+            total += q + l1
+        else:
+            mi = b + c * x
+            v = a + beta * (mi if mi > 0.0 else 0.0)
+            e = buf[i] - mi
+            q = e * e / v
+            total += q + np.log(v)
         maha += q
-        total += q + np.log(v)
     return total, maha, c
 
 
