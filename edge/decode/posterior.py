@@ -26,19 +26,23 @@ Three pure steps over numpy arrays (numba kernels, one pass over the pixels each
 3. `posterior` (the validity stage's input): for each of the three candidates k, the levels are
    refitted to that candidate (``c >= 0``) and scored by the Gaussian negative log-likelihood
    ``L_k = sum_i (r_i - mu_i)**2 / v(mu_i) + log v(mu_i)``; the "no pattern" model (one level,
-   ``mu_i = mean(r)``) gets ``L_0``.  With a uniform prior over the N candidate columns
-   (codebook rows in use, or the disparity band's) and even odds of "lit by the pattern" vs
-   "not lit" (shadow, outside the projector), the posterior odds of a competitor are
-   ``exp(-(L_k - L_1) / 2)`` and those of "not lit" ``N * sqrt(m) * exp(-(L_0 - L_1) / 2)``
-   (``sqrt(m)``: the Occam factor of the one extra parameter, the contrast).  The error
-   probability of the decoded (best) column is
+   ``mu_i = mean(r)``) gets ``L_0``.  The error probability of the decoded (best) column c1 is
 
-       P(wrong) = (sum over far competitors e_k + e_0) / (1 + sum over all competitors e_k + e_0)
+       P(wrong) = 1 - (1 - P(not lit)) * (1 - P(confused))
 
-   where a competitor is *far* when its row differs from the best by more than one codebook row
-   (a one-row miss is the pattern's own quantisation, not an outlier).  Candidates beyond the
-   top three are not counted (the estimate is a lower bound where they matter).  Candidates come
-   back re-ordered by L_k.
+   * ``P(confused)``: with a uniform prior over the columns, competitor k has posterior odds
+     ``e_k = exp(-(L_k - L_1) / 2)``; ``P(confused) = sum over far competitors e_k / (1 + sum
+     over all e_k)``, where a competitor is *far* when its row differs from c1's by more than one
+     codebook row (a one-row miss is the pattern's own quantisation, not an outlier).  Beyond
+     the top three, for binary linear codes, the codewords ``c1 xor h`` with h of weight d_min ..
+     d_min + `TAIL_WEIGHTS` are added (`_tail_mass`: per-bit flip costs under c1's levels),
+     scaled by the share of the codebook a disparity band allows; not where the search found
+     fewer than three or the third is already negligible.
+   * ``P(not lit)`` (shadow, outside the projector): a local false-discovery rate on the gain
+     ``L_0 - L_1``, whose law for unlit pixels is known (`_null`); the share of unlit pixels and
+     the density of the gain come from the capture (`not_lit_probability`).
+
+   Candidates come back re-ordered by L_k.
 
 Units: intensities normalised (1 = full scale of the frame dtype), variances in normalised
 units squared.  Shapes: frames (n, H, W), white / black / outputs (H, W), candidates (H, W, 3).
@@ -341,13 +345,16 @@ def _nll(buf, xs, row, n, xtab, a, beta, use_row):
 
 
 @njit(cache=True, parallel=True)
-def _posterior(frames, white, black, scale, xtab, cand, a, beta, log_prior_flat,
-               out_cand, out_dist, out_err, out_conf, out_contrast):
+def _posterior(frames, white, black, scale, xtab, cand, a, beta, packed, flips, flip_bits, flip_w, in_band,
+               out_cand, out_dist, out_err, out_gain, out_conf, out_contrast):
     n, height, width = frames.shape
     m = n + 2
+    use_tail = flips.size > 0
     for yy in prange(height):
         buf = np.empty(m, np.float64)
         xs = np.empty(m, np.float64)
+        delta = np.empty(n, np.float64)
+        sorted_d = np.empty(n, np.float64)
         lk = np.empty(3, np.float64)
         mk = np.empty(3, np.float64)
         ck = np.empty(3, np.float64)
@@ -382,12 +389,12 @@ def _posterior(frames, white, black, scale, xtab, cand, a, beta, log_prior_flat,
                     out_dist[yy, xx, k] = np.inf
             if count == 0:
                 out_err[yy, xx] = 1.0
+                out_gain[yy, xx] = np.nan
                 out_conf[yy, xx] = 0.0
                 out_contrast[yy, xx] = 0.0
                 continue
             l0, _, _ = _nll(buf, xs, 0, n, xtab, a, beta, False)
-            e0 = min((l0 - lk[0]) * 0.5 - log_prior_flat, _CLIP)
-            flat = np.exp(-e0) if e0 > -_CLIP else np.exp(_CLIP)
+            out_gain[yy, xx] = l0 - lk[0]
             far = 0.0
             every = 0.0
             ek = 0.0
@@ -396,12 +403,76 @@ def _posterior(frames, white, black, scale, xtab, cand, a, beta, log_prior_flat,
                 every += ek
                 if abs(rk[k] - rk[0]) > 1:
                     far += ek
-            out_err[yy, xx] = (far + flat) / (1.0 + every + flat)
+            # the codewords beyond the top three: none where the search found fewer (a narrow
+            # band holds no more), negligible where even the third is (the search ranks the rest
+            # below it), else `_tail_mass` scaled to the share of the codebook the band allows
+            if use_tail and count == 3 and flips.size * ek > TAIL_FLOOR:
+                tail = in_band * _tail_mass(buf, xs, rk, count, n, xtab, a, beta, packed, flips, flip_bits, flip_w,
+                                            delta, sorted_d)
+                far += tail
+                every += tail
+            out_err[yy, xx] = far / (1.0 + every)
             out_conf[yy, xx] = (mk[1] - mk[0]) / mk[1] if count > 1 and mk[1] > mk[0] else 0.0
             out_contrast[yy, xx] = ck[0]
 
 
+@njit(cache=True, inline="always")
+def _tail_mass(buf, xs, rk, count, n, xtab, a, beta, packed, flips, flip_bits, flip_w, delta, sorted_d):
+    """Sum of exp(-(L_c - L_1) / 2) over the codewords c = c1 xor h, h a low-weight codeword of a
+    binary linear code (`_flips`), other than the candidates already scored: with c1's fitted
+    levels, flipping bit i costs delta_i and ``L_c - L_1 = sum over h's bits of delta_i``."""
+    b, c = _fit(buf, xs, rk[0], n, xtab)
+    m1 = b + c
+    v0 = a + beta * (b if b > 0.0 else 0.0)
+    v1 = a + beta * (m1 if m1 > 0.0 else 0.0)
+    l0 = np.log(v0)
+    l1 = np.log(v1)
+    for i in range(n):
+        e0 = buf[i] - b
+        e1 = buf[i] - m1
+        c0 = e0 * e0 / v0 + l0
+        c1 = e1 * e1 / v1 + l1
+        d = (c0 - c1) if xs[i] == 1.0 else (c1 - c0)
+        delta[i] = d
+        sorted_d[i] = d
+    # a weight-w flip costs at least the sum of the w smallest deltas: skip a negligible tail
+    for i in range(1, n):
+        v = sorted_d[i]
+        j = i - 1
+        while j >= 0 and sorted_d[j] > v:
+            sorted_d[j + 1] = sorted_d[j]
+            j -= 1
+        sorted_d[j + 1] = v
+    lowest = 0.0
+    for i in range(flip_w[0]):
+        lowest += sorted_d[i]
+    if flips.size * np.exp(-0.5 * min(max(lowest, -_CLIP), _CLIP)) < TAIL_FLOOR:
+        return 0.0
+    own = packed[rk[0]]
+    total = 0.0
+    for j in range(flips.size):
+        word = own ^ flips[j]
+        skip = False
+        for k in range(1, count):
+            if packed[rk[k]] == word:
+                skip = True
+        if skip:
+            continue
+        d = 0.0
+        for t in range(flip_w[j]):
+            d += delta[flip_bits[j, t]]
+        total += np.exp(-0.5 * min(max(d, -_CLIP), _CLIP))
+    return total
+
+
 _XTAB: dict[int, np.ndarray] = {}
+_FLIPS: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+#: Codeword weights d_min .. d_min + TAIL_WEIGHTS enter the tail mass (`_flips`).
+TAIL_WEIGHTS = 2
+#: At most this many low-weight codewords enter the tail mass (lightest first).
+TAIL_WORDS = 1024
+#: The tail mass is skipped where its bound is below this (far below any error target).
+TAIL_FLOOR = 1e-7
 
 
 def _xtab(code: Code) -> np.ndarray:
@@ -412,6 +483,35 @@ def _xtab(code: Code) -> np.ndarray:
         tab = np.ascontiguousarray(code.codebook, np.float64) / float(code.q - 1)
         _XTAB[key] = tab
     return tab
+
+
+def _flips(code: Code) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Tables of the tail mass (`_tail_mass`) of a binary linear code with n <= 64: packed (size,)
+    uint64 codewords (bit i = symbol i), flips (L,) uint64 its nonzero codewords of weight d_min ..
+    d_min + TAIL_WEIGHTS (at most TAIL_WORDS, lightest first), flip_bits (L, w_max) int32 their
+    bit positions and flip_w (L,) int32 their weights.  Other codes: L = 0 (no tail term)."""
+    key = id(code)
+    hit = _FLIPS.get(key)
+    if hit is None:
+        empty = (np.zeros(1, np.uint64), np.zeros(0, np.uint64), np.zeros((0, 1), np.int32), np.zeros(1, np.int32))
+        hit = empty
+        if code.q == 2 and code.is_linear and code.n <= 64:
+            cb = np.asarray(code.codebook, np.uint64)
+            packed = (cb << np.arange(code.n, dtype=np.uint64)).sum(axis=1, dtype=np.uint64)
+            weights = np.asarray(code.codebook, np.int64).sum(axis=1)
+            nonzero = weights[weights > 0]
+            if nonzero.size:
+                dmin = int(nonzero.min())
+                pick = np.nonzero((weights > 0) & (weights <= dmin + TAIL_WEIGHTS))[0]
+                pick = pick[np.argsort(weights[pick], kind="stable")][:TAIL_WORDS]
+                wmax = int(weights[pick].max())
+                bits = np.zeros((pick.size, wmax), np.int32)
+                for j, r in enumerate(pick):
+                    pos = np.nonzero(code.codebook[r])[0]
+                    bits[j, :pos.size] = pos
+                hit = (packed, packed[pick].copy(), bits, weights[pick].astype(np.int32))
+        _FLIPS[key] = hit
+    return hit
 
 
 def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, code: Code,
@@ -429,10 +529,104 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     cand = np.ascontiguousarray(candidates, np.int32)
     out_cand = np.empty((h, w, 3), np.int32)
     out_dist = np.empty((h, w, 3), np.float32)
-    err = np.empty((h, w), np.float32)
+    competitors = np.empty((h, w), np.float64)
+    gain = np.empty((h, w), np.float64)
     conf = np.empty((h, w), np.float32)
     contrast = np.empty((h, w), np.float32)
-    log_prior_flat = float(np.log(choices) + 0.5 * np.log(frames.shape[0] + 2))
+    packed, flips, flip_bits, flip_w = _flips(code)
     _posterior(frames, white, black, np.float64(scale), _xtab(code), cand, float(noise.a), float(noise.beta),
-               log_prior_flat, out_cand, out_dist, err, conf, contrast)
+               packed, flips, flip_bits, flip_w, min(1.0, choices / code.size), out_cand, out_dist, competitors, gain,
+               conf, contrast)
+    dark = not_lit_probability(gain, code, choices)
+    err = np.where(np.isfinite(gain), 1.0 - (1.0 - dark) * (1.0 - competitors), 1.0).astype(np.float32)
     return Posterior(out_cand, out_dist, err, conf, contrast, noise)
+
+
+# ----------------------------------------------------------------------------- the "not lit" test
+
+#: Pseudo-pixels of the null sample (`_null`), its seed, and the quantile beyond which its
+#: survival function is extrapolated exponentially.
+NULL_SAMPLES = 16384
+NULL_SEED = 20261201
+NULL_TAIL_QUANTILE = 0.99
+#: Bin width of the histogram of sqrt(gain) (`not_lit_probability`).
+GAIN_BIN = 0.25
+
+_NULL: dict[tuple[int, int], tuple[np.ndarray, float, float]] = {}
+
+
+def _null(code: Code, rows: int) -> tuple[np.ndarray, float, float]:
+    """The gain statistic of pixels the pattern does not reach: (sorted sample (NULL_SAMPLES,),
+    x_q = its NULL_TAIL_QUANTILE, tail slope s with S0(x) = (1 - q) exp(-s (x - x_q)) beyond x_q).
+
+    Under "not lit" the m samples are one level plus white Gaussian noise; the gain of the best
+    of the first `rows` codewords (white x = 1, black x = 0 included) with contrast >= 0 is
+    ``max_c max(0, z . u_c)**2`` with u_c the centred, unit-norm symbol vector.  Monte Carlo with a
+    fixed seed (deterministic), cached per (code, rows).
+    """
+    key = (id(code), int(rows))
+    hit = _NULL.get(key)
+    if hit is not None:
+        return hit
+    m = code.n + 2
+    rows = max(1, min(int(rows), code.size))
+    x = np.concatenate([np.asarray(code.codebook[:rows], np.float64) / float(code.q - 1),
+                        np.ones((rows, 1)), np.zeros((rows, 1))], axis=1)
+    x -= x.mean(axis=1, keepdims=True)
+    x /= np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-12)
+    z = np.random.default_rng(NULL_SEED).standard_normal((NULL_SAMPLES, m))
+    best = np.zeros(NULL_SAMPLES)
+    for i in range(0, rows, 256):
+        proj = np.maximum(z @ x[i:i + 256].T, 0.0)
+        best = np.maximum(best, (proj * proj).max(axis=1))
+    sample = np.sort(best)
+    xq = float(np.quantile(sample, NULL_TAIL_QUANTILE))
+    x999 = float(np.quantile(sample, 1.0 - (1.0 - NULL_TAIL_QUANTILE) / 10.0))
+    slope = float(np.log(10.0) / max(x999 - xq, 1e-6))
+    _NULL[key] = out = (sample, xq, slope)
+    return out
+
+
+def _null_survival(xs: np.ndarray, null: tuple[np.ndarray, float, float]) -> np.ndarray:
+    """S0(x) = P(gain >= x | not lit): empirical up to x_q, exponential tail beyond."""
+    sample, xq, slope = null
+    emp = 1.0 - np.searchsorted(sample, xs, side="left") / sample.size
+    tail = (1.0 - NULL_TAIL_QUANTILE) * np.exp(-slope * (xs - xq))
+    return np.where(xs <= xq, emp, np.minimum(tail, 1.0 - NULL_TAIL_QUANTILE))
+
+
+def not_lit_probability(gain: np.ndarray, code: Code, rows: int) -> np.ndarray:
+    """(H, W) float64 P(the pixel is not lit by the pattern | its gain), 0..1.
+
+    gain: (H, W) ``L_0 - L_1`` (NaN where no candidate); rows: codebook rows a pixel could decode
+    to.  Two-group model (a local false-discovery rate): the pixels of this capture are a mixture
+    of "not lit" pixels, whose gain follows the known null law S0 (`_null`), and lit ones.  With
+    ``u = sqrt(gain)`` in bins of `GAIN_BIN`, ``P(not lit | u in bin) = pi0 * N * P0(bin) /
+    count(bin)`` (clipped to 1, then made non-increasing in u), where N is the number of pixels
+    and pi0 the fraction of not-lit pixels, estimated as ``#(gain < null median) / (N / 2)``
+    (Storey's estimator at lambda = 1/2, at most 1).  Nothing is assumed about the scene: the
+    share of shadow pixels comes from the capture.
+    """
+    ok = np.isfinite(gain)
+    out = np.zeros(gain.shape, np.float64)
+    total = int(ok.sum())
+    if total == 0:
+        return out
+    null = _null(code, rows)
+    g = np.maximum(gain[ok], 0.0)
+    median = float(null[0][null[0].size // 2])
+    pi0 = min(1.0, float((g < median).sum()) / (0.5 * total))
+    # bins up to where the null's survival is negligible (beyond: 0)
+    x_end = null[1] + np.log(1e12) / null[2]
+    nb = int(np.ceil(np.sqrt(x_end) / GAIN_BIN)) + 1
+    edges_u = np.arange(nb + 1) * GAIN_BIN
+    s0 = _null_survival(edges_u ** 2, null)
+    p0 = np.maximum(s0[:-1] - s0[1:], 0.0)
+    u = np.sqrt(g)
+    idx = np.minimum((u / GAIN_BIN).astype(np.int64), nb)
+    counts = np.bincount(idx, minlength=nb + 1)[:nb].astype(np.float64)
+    fdr = np.minimum(1.0, pi0 * total * p0 / np.maximum(counts, 1.0))
+    fdr = np.maximum.accumulate(fdr[::-1])[::-1]  # non-increasing in u (the conservative envelope)
+    lookup = np.append(fdr, 0.0)
+    out[ok] = lookup[idx]
+    return out
