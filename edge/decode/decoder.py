@@ -200,16 +200,18 @@ def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, nc
             st, code, first, columns=ncols, band=band, stripe=stripe).candidates[..., 0])
     elif s.levels == "auto":
         on, off, first_noise = split_levels(stack.frames, stack.white, stack.black, float(scale),
-                                            prior=(s.sigma_r, s.sigma_s))
-        searched = validate(stack.frames.astype(np.float32) * scale, on, off, code)
+                                            prior=(s.sigma_r, s.sigma_s), inverse=stack.inverse)
+        inv = None if stack.inverse is None else stack.inverse.astype(np.float32) * scale
+        searched = validate(stack.frames.astype(np.float32) * scale, on, off, code, inverse=inv)
         s = s.replace(sigma_r=float(np.sqrt(first_noise.a)), sigma_s=float(np.sqrt(first_noise.beta)))
     else:
         searched = stack
     found = search_candidates(searched, code, s, columns=ncols, band=band, stripe=stripe)
-    noise = fit_noise(stack.frames, stack.white, stack.black, float(scale), code, found.candidates[..., 0],
-                      prior=(s.sigma_r, s.sigma_s))
+    best = found.candidates[..., 0]
+    noise = fit_noise(stack.frames, stack.white, stack.black, float(scale), code, best,
+                      prior=(s.sigma_r, s.sigma_s), inverse=stack.inverse)
     post = posterior(stack.frames, stack.white, stack.black, float(scale), code, found.candidates, noise,
-                     choices=band_choices(ncols, band, stripe))
+                     choices=band_choices(ncols, band, stripe), inverse=stack.inverse)
     column0 = np.ascontiguousarray(post.candidates[..., 0])
     ok = s.max_error
     if s.method in ("soft", "hard"):

@@ -149,15 +149,17 @@ def _split_levels(frames, white, black, scale, out_hi, out_lo, out_s2, out_mu):
 
 
 def split_levels(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, *,
-                 prior: tuple[float, float] = (0.01, 0.03)) -> tuple[np.ndarray, np.ndarray, Noise]:
+                 prior: tuple[float, float] = (0.01, 0.03),
+                 inverse: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, Noise]:
     """Step 1 of the module docstring: (on, off) float32 (H, W) levels in normalised units, and
     the noise model fitted (as `fit_noise` does) to the residuals of the samples about their
     split level: the search's noise model, before any decode.
 
     frames: (n, H, W) raw frames (any real dtype), white / black: (H, W) raw; scale: raw value ->
-    normalised intensity; prior: (sigma_r, sigma_s) where too few pixels.  ``on - off >=
-    MIN_CONTRAST`` everywhere.
+    normalised intensity; prior: (sigma_r, sigma_s) where too few pixels; inverse: (n, H, W)
+    inverse frames (n more samples) or None.  ``on - off >= MIN_CONTRAST`` everywhere.
     """
+    frames = _samples(frames, inverse)
     h, w = white.shape
     hi = np.empty((h, w), np.float32)
     lo = np.empty((h, w), np.float32)
@@ -237,19 +239,21 @@ def _chi2_median_ratio(k: int) -> float:
 
 
 def fit_noise(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, code: Code,
-              best: np.ndarray, *, prior: tuple[float, float]) -> Noise:
+              best: np.ndarray, *, prior: tuple[float, float], inverse: np.ndarray | None = None) -> Noise:
     """Step 2 of the module docstring: the `Noise` of this capture.
 
     best: (H, W) int codebook rows (-1 = none) of the search; prior: (sigma_r, sigma_s) used where
-    fewer than `MIN_FIT_PIXELS` pixels have a row.
+    fewer than `MIN_FIT_PIXELS` pixels have a row; inverse: (n, H, W) inverse frames or None.
     """
+    samples = _samples(frames, inverse)
     h, w = white.shape
     sy, sx = _steps(h, w)
     s2 = np.empty(((h + sy - 1) // sy, (w + sx - 1) // sx), np.float64)
     mu = np.empty_like(s2)
-    _fit_stats(frames, white, black, np.float64(scale), _xtab(code), np.ascontiguousarray(best, np.int32), sy, sx,
-               s2, mu)
-    return _noise_from(s2, mu, frames, scale, prior)
+    xtab = _xtab(code, inverse is not None)
+    _fit_stats(samples, white, black, np.float64(scale), xtab,
+               np.ascontiguousarray(best, np.int32), sy, sx, s2, mu)
+    return _noise_from(s2, mu, samples, scale, prior)
 
 
 def _steps(h: int, w: int) -> tuple[int, int]:
@@ -345,7 +349,7 @@ def _nll(buf, xs, row, n, xtab, a, beta, use_row):
 
 
 @njit(cache=True, parallel=True)
-def _posterior(frames, white, black, scale, xtab, cand, a, beta, packed, flips, flip_bits, flip_w, in_band,
+def _posterior(frames, white, black, scale, xtab, nbits, cand, a, beta, packed, flips, flip_bits, flip_w, in_band,
                out_cand, out_dist, out_err, out_gain, out_conf, out_contrast):
     n, height, width = frames.shape
     m = n + 2
@@ -407,7 +411,7 @@ def _posterior(frames, white, black, scale, xtab, cand, a, beta, packed, flips, 
             # band holds no more), negligible where even the third is (the search ranks the rest
             # below it), else `_tail_mass` scaled to the share of the codebook the band allows
             if use_tail and count == 3 and flips.size * ek > TAIL_FLOOR:
-                tail = in_band * _tail_mass(buf, xs, rk, count, n, xtab, a, beta, packed, flips, flip_bits, flip_w,
+                tail = in_band * _tail_mass(buf, xs, rk, count, n, nbits, xtab, a, beta, packed, flips, flip_bits, flip_w,
                                             delta, sorted_d)
                 far += tail
                 every += tail
@@ -417,26 +421,25 @@ def _posterior(frames, white, black, scale, xtab, cand, a, beta, packed, flips, 
 
 
 @njit(cache=True, inline="always")
-def _tail_mass(buf, xs, rk, count, n, xtab, a, beta, packed, flips, flip_bits, flip_w, delta, sorted_d):
+def _tail_mass(buf, xs, rk, count, n, nbits, xtab, a, beta, packed, flips, flip_bits, flip_w, delta, sorted_d):
     """Sum of exp(-(L_c - L_1) / 2) over the codewords c = c1 xor h, h a low-weight codeword of a
     binary linear code (`_flips`), other than the candidates already scored: with c1's fitted
     levels, flipping bit i costs delta_i and ``L_c - L_1 = sum over h's bits of delta_i``."""
     b, c = _fit(buf, xs, rk[0], n, xtab)
-    m1 = b + c
-    v0 = a + beta * (b if b > 0.0 else 0.0)
-    v1 = a + beta * (m1 if m1 > 0.0 else 0.0)
-    l0 = np.log(v0)
-    l1 = np.log(v1)
-    for i in range(n):
-        e0 = buf[i] - b
-        e1 = buf[i] - m1
-        c0 = e0 * e0 / v0 + l0
-        c1 = e1 * e1 / v1 + l1
-        d = (c0 - c1) if xs[i] == 1.0 else (c1 - c0)
-        delta[i] = d
-        sorted_d[i] = d
+    for i in range(n):  # a flipped bit takes the sample's symbol x to 1 - x
+        mo = b + c * xs[i]
+        mf = b + c * (1.0 - xs[i])
+        vo = a + beta * (mo if mo > 0.0 else 0.0)
+        vf = a + beta * (mf if mf > 0.0 else 0.0)
+        eo = buf[i] - mo
+        ef = buf[i] - mf
+        delta[i] = (ef * ef / vf + np.log(vf)) - (eo * eo / vo + np.log(vo))
+    for i in range(nbits):  # with inverse frames a bit flips a pattern and an inverse sample
+        if n > nbits:
+            delta[i] += delta[i + nbits]
+        sorted_d[i] = delta[i]
     # a weight-w flip costs at least the sum of the w smallest deltas: skip a negligible tail
-    for i in range(1, n):
+    for i in range(1, nbits):
         v = sorted_d[i]
         j = i - 1
         while j >= 0 and sorted_d[j] > v:
@@ -465,7 +468,7 @@ def _tail_mass(buf, xs, rk, count, n, xtab, a, beta, packed, flips, flip_bits, f
     return total
 
 
-_XTAB: dict[int, np.ndarray] = {}
+_XTAB: dict[tuple[int, bool], np.ndarray] = {}
 _FLIPS: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
 #: Codeword weights d_min .. d_min + TAIL_WEIGHTS enter the tail mass (`_flips`).
 TAIL_WEIGHTS = 2
@@ -475,14 +478,23 @@ TAIL_WORDS = 1024
 TAIL_FLOOR = 1e-7
 
 
-def _xtab(code: Code) -> np.ndarray:
-    """(size, n) float64 symbol / (q - 1) of every codeword (cached per code object)."""
-    key = id(code)
+def _xtab(code: Code, inverse: bool = False) -> np.ndarray:
+    """(size, n) float64 symbol / (q - 1) of every codeword, with inverse frames (size, 2n): the
+    pattern's symbols, then the inverse pattern's (1 - x).  Cached per (code object, inverse)."""
+    key = (id(code), bool(inverse))
     tab = _XTAB.get(key)
-    if tab is None or tab.shape != (code.size, code.n):
-        tab = np.ascontiguousarray(code.codebook, np.float64) / float(code.q - 1)
+    if tab is None or tab.shape[0] != code.size:
+        tab = np.asarray(code.codebook, np.float64) / float(code.q - 1)
+        if inverse:
+            tab = np.concatenate([tab, 1.0 - tab], axis=1)
+        tab = np.ascontiguousarray(tab)
         _XTAB[key] = tab
     return tab
+
+
+def _samples(frames: np.ndarray, inverse: np.ndarray | None) -> np.ndarray:
+    """The code samples of a capture: frames (n, H, W), or frames then inverse (2n, H, W)."""
+    return frames if inverse is None else np.concatenate([frames, inverse], axis=0)
 
 
 def _flips(code: Code) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -515,13 +527,13 @@ def _flips(code: Code) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 
 
 def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, code: Code,
-              candidates: np.ndarray, noise: Noise, *, choices: int) -> Posterior:
+              candidates: np.ndarray, noise: Noise, *, choices: int, inverse: np.ndarray | None = None) -> Posterior:
     """Step 3 of the module docstring.
 
-    frames (n, H, W), white / black (H, W): the raw capture (``scale`` to normalised units);
-    candidates: (H, W, 3) int32 rows of the search; noise: `fit_noise`'s model; choices: N, the
-    number of columns a pixel could have decoded to (codebook rows in use, or the rows of the
-    disparity band), >= 1.
+    frames (n, H, W), white / black (H, W), inverse (n, H, W) or None: the raw capture (``scale``
+    to normalised units; inverse frames are n more samples, of symbol 1 - x); candidates: (H, W,
+    3) int32 rows of the search; noise: `fit_noise`'s model; choices: N, the number of columns a
+    pixel could have decoded to (codebook rows in use, or the rows of the disparity band), >= 1.
     """
     if choices < 1:
         raise ValueError(f"choices: expected >= 1 candidate columns, got {choices}")
@@ -534,10 +546,13 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     conf = np.empty((h, w), np.float32)
     contrast = np.empty((h, w), np.float32)
     packed, flips, flip_bits, flip_w = _flips(code)
-    _posterior(frames, white, black, np.float64(scale), _xtab(code), cand, float(noise.a), float(noise.beta),
-               packed, flips, flip_bits, flip_w, min(1.0, choices / code.size), out_cand, out_dist, competitors, gain,
-               conf, contrast)
-    dark = not_lit_probability(gain, code, choices)
+    has_inv = inverse is not None
+    xtab = _xtab(code, has_inv)
+    _posterior(_samples(frames, inverse), white, black, np.float64(scale),
+               xtab, code.n, cand,
+               float(noise.a), float(noise.beta), packed, flips, flip_bits, flip_w, min(1.0, choices / code.size),
+               out_cand, out_dist, competitors, gain, conf, contrast)
+    dark = not_lit_probability(gain, code, choices, inverse=has_inv)
     err = np.where(np.isfinite(gain), 1.0 - (1.0 - dark) * (1.0 - competitors), 1.0).astype(np.float32)
     return Posterior(out_cand, out_dist, err, conf, contrast, noise)
 
@@ -552,10 +567,10 @@ NULL_TAIL_QUANTILE = 0.99
 #: Bin width of the histogram of sqrt(gain) (`not_lit_probability`).
 GAIN_BIN = 0.25
 
-_NULL: dict[tuple[int, int], tuple[np.ndarray, float, float]] = {}
+_NULL: dict[tuple[int, int, bool], tuple[np.ndarray, float, float]] = {}
 
 
-def _null(code: Code, rows: int) -> tuple[np.ndarray, float, float]:
+def _null(code: Code, rows: int, inverse: bool = False) -> tuple[np.ndarray, float, float]:
     """The gain statistic of pixels the pattern does not reach: (sorted sample (NULL_SAMPLES,),
     x_q = its NULL_TAIL_QUANTILE, tail slope s with S0(x) = (1 - q) exp(-s (x - x_q)) beyond x_q).
 
@@ -564,14 +579,13 @@ def _null(code: Code, rows: int) -> tuple[np.ndarray, float, float]:
     ``max_c max(0, z . u_c)**2`` with u_c the centred, unit-norm symbol vector.  Monte Carlo with a
     fixed seed (deterministic), cached per (code, rows).
     """
-    key = (id(code), int(rows))
+    key = (id(code), int(rows), bool(inverse))
     hit = _NULL.get(key)
     if hit is not None:
         return hit
-    m = code.n + 2
     rows = max(1, min(int(rows), code.size))
-    x = np.concatenate([np.asarray(code.codebook[:rows], np.float64) / float(code.q - 1),
-                        np.ones((rows, 1)), np.zeros((rows, 1))], axis=1)
+    x = np.concatenate([_xtab(code, inverse)[:rows], np.ones((rows, 1)), np.zeros((rows, 1))], axis=1)
+    m = x.shape[1]
     x -= x.mean(axis=1, keepdims=True)
     x /= np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-12)
     z = np.random.default_rng(NULL_SEED).standard_normal((NULL_SAMPLES, m))
@@ -595,11 +609,12 @@ def _null_survival(xs: np.ndarray, null: tuple[np.ndarray, float, float]) -> np.
     return np.where(xs <= xq, emp, np.minimum(tail, 1.0 - NULL_TAIL_QUANTILE))
 
 
-def not_lit_probability(gain: np.ndarray, code: Code, rows: int) -> np.ndarray:
+def not_lit_probability(gain: np.ndarray, code: Code, rows: int, *, inverse: bool = False) -> np.ndarray:
     """(H, W) float64 P(the pixel is not lit by the pattern | its gain), 0..1.
 
     gain: (H, W) ``L_0 - L_1`` (NaN where no candidate); rows: codebook rows a pixel could decode
-    to.  Two-group model (a local false-discovery rate): the pixels of this capture are a mixture
+    to; inverse: whether the capture had inverse frames (the null law of 2n + 2 samples).
+    Two-group model (a local false-discovery rate): the pixels of this capture are a mixture
     of "not lit" pixels, whose gain follows the known null law S0 (`_null`), and lit ones.  With
     ``u = sqrt(gain)`` in bins of `GAIN_BIN`, ``P(not lit | u in bin) = pi0 * N * P0(bin) /
     count(bin)`` (clipped to 1, then made non-increasing in u), where N is the number of pixels
@@ -612,7 +627,7 @@ def not_lit_probability(gain: np.ndarray, code: Code, rows: int) -> np.ndarray:
     total = int(ok.sum())
     if total == 0:
         return out
-    null = _null(code, rows)
+    null = _null(code, rows, inverse)
     g = np.maximum(gain[ok], 0.0)
     median = float(null[0][null[0].size // 2])
     pi0 = min(1.0, float((g < median).sum()) / (0.5 * total))

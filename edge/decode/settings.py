@@ -96,12 +96,11 @@ class DecodeSettings:
 
     def rule(self, has_inverse: bool) -> str:
         """The validity rule these settings apply to a capture with / without inverse frames:
-        "error" or "confidence" (``validity="auto"``: "error" for the soft methods without inverse
-        frames).  "error" with inverse frames raises one ValueError."""
+        "error" or "confidence".  ``validity="auto"``: "error" for the soft methods on captures
+        without inverse frames; "confidence" for "hard" and for pattern + inverse captures (the
+        full-exposure captures that rule was validated on; "error" takes them when asked, see
+        the README)."""
         if self.validity == "error":
-            if has_inverse:
-                raise ValueError("validity: 'error' expects a capture without inverse frames (its noise "
-                                 "and level model is per sample), got inverse=; use 'confidence' or 'auto'")
             return "error"
         if self.validity == "confidence" or has_inverse or self.method == "hard":
             return "confidence"
