@@ -1,13 +1,18 @@
 """The "error" validity rule with `decode`'s defaults: coding gain, spatial methods, calibration.
 
-    python tools/eval_posterior.py [--size 160x120] [--seeds 0 1]
+    python tools/eval_posterior.py [--size 160x120] [--seeds 0 1] [--out docs/results/posterior]
 
 Two scene generators (`edge.sim`'s flying scene, 12-bit, sigma_s 0.04; the tests' independent
 plane / box / sphere renderer, 12-bit), fixed total exposure (every frame at T / n), ambient 0.5 /
 1 / 2 x the projector.  Prints the error rate (wrong or invalid, over lit pixels) of gray-10 and
 ecc-15/22/31/63-10 decoded with the defaults, and the ratio to gray-10; the same for ecc-22-10
 with the spatial methods; and the reliability table of P(wrong) (predicted vs observed rate of
-columns more than one row off, per bin) on edge.sim.  No option of `decode` is set.
+columns more than one row off, per bin) on both generators, and on the real OpenCV capture
+(../shared/data/procam-graycode, where present) the coverage and 7x7-median outlier rate of
+`validity="error"` with and without its inverse frames (its 7x7-median outliers of the top-1
+columns as the observed errors of the reliability table).  Writes README.md and
+reliability.png to --out.  Apart from that one ``validity`` on the real capture (whose inverse
+frames `validity="auto"` gives the confidence rule), no option of `decode` is set.
 """
 
 from __future__ import annotations
@@ -49,17 +54,41 @@ def pbs_capture(code, ratio, seed, size):
     return f, w, b, 12, col, np.ones(col.shape, bool)
 
 
+REAL = ROOT / ".." / "shared" / "data" / "procam-graycode" / "capture_0"
+
+
+def reliability(p: np.ndarray, o: np.ndarray) -> list[tuple[float, float, float, int]]:
+    """(lo, predicted mean, observed rate, pixels) per BINS bin with >= 30 pixels."""
+    out = []
+    for lo, hi in zip(BINS[:-1], BINS[1:]):
+        s = (p >= lo) & (p < hi)
+        if s.sum() >= 30:
+            out.append((lo, float(p[s].mean()), float(o[s].mean()), int(s.sum())))
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--size", default="160x120", help="scene size WxH (default 160x120)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1], help="scene / noise seeds (default 0 1)")
+    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "posterior",
+                    help="folder for README.md and reliability.png (default docs/results/posterior)")
+    ap.add_argument("--real", type=Path, default=REAL, help="OpenCV Gray-code capture folder (skipped if absent)")
     args = ap.parse_args(argv)
     size = tuple(int(v) for v in args.size.split("x"))
-    pred, obs = {c: [] for c in CODES}, {c: [] for c in CODES}
+    lines: list[str] = [f"Command: `python tools/eval_posterior.py --size {args.size} --seeds "
+                        f"{' '.join(map(str, args.seeds))}`", ""]
+
+    def say(text: str = "") -> None:
+        print(text, flush=True)
+        lines.append(text)
+
+    curves: dict[str, dict[str, list]] = {}
     for gen_name, gen in (("edge.sim", sim_capture), ("plane-box-sphere", pbs_capture)):
-        print(f"\n## {gen_name}: error rate with defaults (wrong or invalid), ratio to gray-10")
-        print("| ambient | " + " | ".join(CODES) + " | ecc-22-10 list | ecc-22-10 median |")
-        print("|---" * (len(CODES) + 3) + "|")
+        pred, obs = {c: [] for c in CODES}, {c: [] for c in CODES}
+        say(f"\n## {gen_name}: error rate with defaults (wrong or invalid), ratio to gray-10\n")
+        say("| ambient | " + " | ".join(CODES) + " | ecc-22-10 list | ecc-22-10 median |")
+        say("|---" * (len(CODES) + 3) + "|")
         for ratio in RATIOS:
             err = {}
             for name in CODES + ("list", "median"):
@@ -71,24 +100,74 @@ def main(argv: list[str] | None = None) -> int:
                     d = decode(f, w, b, code, bit_depth=bd, method=method)
                     e_sum += int((((d.column != col) | ~d.valid) & lit).sum())
                     n_sum += int(lit.sum())
-                    if gen_name == "edge.sim" and name in CODES:
+                    if name in CODES:
                         pred[name].append(d.error[lit])
                         obs[name].append((np.abs(d.candidates[..., 0] - col) > 1)[lit])
                 err[name] = e_sum / n_sum
             g = err["gray-10"]
             cells = [f"{err[c]:.4f}" + ("" if c == "gray-10" else f" ({g / max(err[c], 1e-9):.1f}x)") for c in CODES]
             cells += [f"{err[m]:.4f} ({err['ecc-22-10'] / max(err[m], 1e-9):.1f}x soft)" for m in ("list", "median")]
-            print(f"| {ratio} | " + " | ".join(cells) + " |", flush=True)
-    print("\n## edge.sim: P(wrong) predicted / observed (column > 1 row off), per bin")
-    for name in CODES:
-        p, o = np.concatenate(pred[name]), np.concatenate(obs[name])
-        cells = []
-        for lo, hi in zip(BINS[:-1], BINS[1:]):
-            s = (p >= lo) & (p < hi)
-            if s.sum() >= 30:
-                cells.append(f"[{lo:g}, {hi:g}) {p[s].mean():.4f} / {o[s].mean():.4f} ({int(s.sum())})")
-        print(f"{name}: " + " | ".join(cells))
+            say(f"| {ratio} | " + " | ".join(cells) + " |")
+        say(f"\n{gen_name}: P(wrong) predicted / observed (column more than one row off), per bin "
+            "(pixels), all ambient levels\n")
+        curves[gen_name] = {}
+        for name in CODES:
+            rel = reliability(np.concatenate(pred[name]), np.concatenate(obs[name]))
+            curves[gen_name][name] = rel
+            say(f"- {name}: " + " | ".join(f"[{lo:g}) {p:.4f} / {o:.4f} ({k})" for lo, p, o, k in rel))
+    if args.real.is_dir():
+        from edge.decode import load_opencv_graycode, spatial_outliers
+
+        cap = load_opencv_graycode(args.real, (1024, 768))
+        say("\n## Real OpenCV Gray-code capture (validity='error'; OpenCV: 56 % at 0.01 %)\n")
+        say("| frames | coverage | x OpenCV | 7x7 outliers |")
+        say("|---|---|---|---|")
+        for label, inv in (("pattern + inverse", cap.inverse), ("pattern only", None)):
+            d = decode(cap.frames, cap.white, cap.black, cap.code, columns=cap.columns, inverse=inv, validity="error")
+            e = spatial_outliers(d.column, d.valid, window=7, tol=2)
+            say(f"| {label} | {d.valid.mean():.4f} | {d.valid.mean() / 0.56:.3f} | "
+                f"{e.sum() / max(d.valid.sum(), 1):.6f} ({int(e.sum())}) |")
+            if inv is not None:
+                top = d.candidates[..., 0]
+                o = spatial_outliers(top, top >= 0, window=7, tol=2)
+                curves["real (pattern + inverse)"] = {"gray-10": reliability(d.error.ravel(), o.ravel())}
+        rel = curves["real (pattern + inverse)"]["gray-10"]
+        say("\nreal: P(wrong) predicted / 7x7-median outlier rate of the top-1 columns, per bin\n")
+        say("- gray-10: " + " | ".join(f"[{lo:g}) {p:.4f} / {o:.4f} ({k})" for lo, p, o, k in rel))
+    args.out.mkdir(parents=True, exist_ok=True)
+    _plot(curves, args.out / "reliability.png")
+    (args.out / "README.md").write_text("# The error-probability rule with decode()'s defaults\n\n"
+                                        + "\n".join(lines) + "\n\n![reliability](reliability.png)\n")
+    print(f"wrote {args.out / 'README.md'} and reliability.png")
     return 0
+
+
+def _plot(curves: dict[str, dict[str, list]], path: Path) -> None:
+    """Reliability plot: predicted P(wrong) vs observed rate per bin, one panel per data set."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(curves), figsize=(4.2 * len(curves), 4.0), squeeze=False)
+    for ax, (title, per_code) in zip(axes[0], curves.items()):
+        lim = (5e-4, 0.6)
+        ax.fill_between(lim, [lim[0] / 2, lim[1] / 2], [lim[0] * 2, lim[1] * 2], color="0.9", label="within 2x")
+        ax.plot(lim, lim, "k--", lw=0.8)
+        for name, rel in per_code.items():
+            if rel:
+                ax.plot([r[1] for r in rel], [max(r[2], 1e-4) for r in rel], "o-", ms=3, label=name)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlim(*lim)
+        ax.set_ylim(1e-4, 1.0)
+        ax.set_xlabel("predicted P(wrong)")
+        ax.set_ylabel("observed rate")
+        ax.set_title(title, fontsize=9)
+        ax.legend(fontsize=6)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 if __name__ == "__main__":
