@@ -105,12 +105,10 @@ def _split_levels(frames, white, black, scale, out_hi, out_lo, out_s2, out_mu):
     n, height, width = frames.shape
     m = n + 2
     for yy in prange(height):
-        buf = np.empty(m, np.float64)
+        block = np.empty((width, m), np.float64)
+        _row_block(frames, white, black, scale, yy, block)
         for xx in range(width):
-            for i in range(n):
-                buf[i] = frames[i, yy, xx] * scale
-            buf[n] = white[yy, xx] * scale
-            buf[n + 1] = black[yy, xx] * scale
+            buf = block[xx]
             for i in range(1, m):  # insertion sort: m is small (n + 2 <= 65)
                 v = buf[i]
                 j = i - 1
@@ -170,12 +168,17 @@ def split_levels(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale
 
 
 @njit(cache=True, inline="always")
-def _gather(frames, white, black, scale, yy, xx, buf):
+def _row_block(frames, white, black, scale, yy, block):
+    """block (W, m) float64 = the m samples of every pixel of row yy, normalised (frames read a
+    row at a time: contiguous, where reading one pixel's samples strides by H * W)."""
     n = frames.shape[0]
+    width = block.shape[0]
     for i in range(n):
-        buf[i] = frames[i, yy, xx] * scale
-    buf[n] = white[yy, xx] * scale
-    buf[n + 1] = black[yy, xx] * scale
+        for xx in range(width):
+            block[xx, i] = frames[i, yy, xx] * scale
+    for xx in range(width):
+        block[xx, n] = white[yy, xx] * scale
+        block[xx, n + 1] = black[yy, xx] * scale
 
 
 @njit(cache=True, inline="always")
@@ -209,9 +212,11 @@ def _fit_stats(frames, white, black, scale, xtab, best, step_y, step_x, out_s2, 
     n = frames.shape[0]
     m = n + 2
     rows, cols = out_s2.shape
+    width = frames.shape[2]
     for ry in prange(rows):
         yy = ry * step_y
-        buf = np.empty(m, np.float64)
+        block = np.empty((width, m), np.float64)
+        _row_block(frames, white, black, scale, yy, block)
         xs = np.empty(m, np.float64)
         for rx in range(cols):
             xx = rx * step_x
@@ -220,7 +225,7 @@ def _fit_stats(frames, white, black, scale, xtab, best, step_y, step_x, out_s2, 
                 out_s2[ry, rx] = np.nan
                 out_mu[ry, rx] = np.nan
                 continue
-            _gather(frames, white, black, scale, yy, xx, buf)
+            buf = block[xx]
             b, c = _fit(buf, xs, row, n, xtab)
             ssr = 0.0
             mu = 0.0
@@ -355,7 +360,8 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, a, beta, packed, 
     m = n + 2
     use_tail = flips.size > 0
     for yy in prange(height):
-        buf = np.empty(m, np.float64)
+        block = np.empty((width, m), np.float64)
+        _row_block(frames, white, black, scale, yy, block)
         xs = np.empty(m, np.float64)
         delta = np.empty(n, np.float64)
         sorted_d = np.empty(n, np.float64)
@@ -364,7 +370,7 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, a, beta, packed, 
         ck = np.empty(3, np.float64)
         rk = np.empty(3, np.int32)
         for xx in range(width):
-            _gather(frames, white, black, scale, yy, xx, buf)
+            buf = block[xx]
             count = 0
             for k in range(3):
                 row = cand[yy, xx, k]
