@@ -273,14 +273,18 @@ def test_hard_corrects_up_to_t_errors(name):
     assert (decode(frames, white, black, code, inverse=inverse).candidates[..., 0] == cols).all()
 
 
-def test_hard_and_soft_on_noisy_capture():
+@pytest.mark.parametrize("seed", range(6, 11))
+def test_soft_beats_hard_on_noisy_captures(seed):
+    """Soft ML uses the analogue samples hard decisions throw away: on a noisy capture its top-1
+    column is right clearly more often (measured 0.61-0.65 vs 0.43-0.47 on seeds 0-4)."""
     code = get_code("ecc-22-10")
-    rng = np.random.default_rng(6)
+    rng = np.random.default_rng(seed)
     cols = rng.integers(0, code.size, (30, 40))
-    cap = make_capture(code, cols, rng=rng, albedo=0.04, sigma_s=0.05)
+    cap = make_capture(code, cols, rng=rng, albedo=0.035, sigma_s=0.05)
     soft = decode(cap.frames, cap.white, cap.black, code).candidates[..., 0]
     hard = decode(cap.frames, cap.white, cap.black, code, method="hard").candidates[..., 0]
-    assert (soft == cols).mean() >= (hard == cols).mean()
+    assert (hard == cols).mean() < 0.9  # noisy enough to matter
+    assert (soft == cols).mean() >= (hard == cols).mean() + 0.08
 
 
 def test_nary_code_brute_force():
@@ -345,24 +349,28 @@ def test_median_filter_uses_only_high_confidence_votes():
     assert not valid2[3, 3] and valid2[0, 0]
 
 
-def test_methods_run_and_improve_or_keep_accuracy():
+@pytest.mark.parametrize("seed", [8, 9, 10])
+def test_spatial_methods_correct_with_the_default_rule(seed):
+    """A dim slanted plane (soft decoding gets about 60 % of the columns right): with decode()'s
+    defaults (the "error" rule) the order prior and the median filter replace low-probability
+    columns by supported candidates: wrong-or-invalid drops from about 56 % to 13-22 %, while
+    published pixels stay right (measured: off by > 1 row on 0.1-1.3 % of them)."""
     code = get_code("ecc-22-10")
-    rng = np.random.default_rng(8)
+    rng = np.random.default_rng(seed)
     h, w = 40, 60
     x = np.arange(w)[None, :]
     cols = np.broadcast_to(x // 4 + 100, (h, w))  # a smooth slanted plane
     cap = make_capture(code, cols, rng=rng, albedo=0.035, sigma_s=0.05)
-    res = {m: decode(cap.frames, cap.white, cap.black, code, method=m)
-           for m in ("soft", "list", "median", "list+median")}
-    raw = (np.abs(res["soft"].candidates[..., 0] - cols) <= 1).mean()
-    assert raw < 1.0  # the test is noisy enough to matter
+    res = {m: _decode(cap.frames, cap.white, cap.black, code, method=m) for m in ("soft", "list", "median", "list+median")}
+    err = {m: ((d.column != cols) | ~d.valid).mean() for m, d in res.items()}
+    far = {m: ((np.abs(d.column - cols) > 1) & d.valid).sum() / max(d.valid.sum(), 1) for m, d in res.items()}
+    print(err, far)
+    assert err["soft"] > 0.3  # the regime where the spatial methods matter
     for m, d in res.items():
-        assert d.column.dtype == np.int32 and d.valid.dtype == bool
-        assert ((d.column >= 0) == d.valid).all()
-        good = (np.abs(d.column - cols) <= 1) & d.valid
-        print(m, raw, good.sum() / d.valid.sum(), d.valid.mean())
-        assert good.sum() / d.valid.sum() >= raw  # valid pixels are more often right than raw ones
-        assert good.sum() >= 0.5 * raw * good.size
+        assert d.column.dtype == np.int32 and d.valid.dtype == bool and ((d.column >= 0) == d.valid).all()
+        assert far[m] <= 0.03
+    for m in ("list", "median", "list+median"):
+        assert err[m] <= 0.5 * err["soft"], (m, err)
 
 
 def _good():
