@@ -354,7 +354,8 @@ def _nll(buf, xs, row, n, xtab, a, beta, use_row):
 
 
 @njit(cache=True, parallel=True)
-def _posterior(frames, white, black, scale, xtab, nbits, cand, a, beta, packed, flips, flip_bits, flip_w, in_band,
+def _posterior(frames, white, black, scale, xtab, nbits, cand, a, beta, packed, flips, flip_bits, flip_w,
+               tail_weight, wlo, whi, in_band,
                out_cand, out_dist, out_err, out_gain, out_conf, out_contrast):
     n, height, width = frames.shape
     m = n + 2
@@ -416,9 +417,9 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, a, beta, packed, 
             # the codewords beyond the top three: none where the search found fewer (a narrow
             # band holds no more), negligible where even the third is (the search ranks the rest
             # below it), else `_tail_mass` scaled to the share of the codebook the band allows
-            if use_tail and count == 3 and flips.size * ek > TAIL_FLOOR:
+            if use_tail and count == 3 and flips.size * tail_weight * ek > TAIL_FLOOR and far < 1.0 + every - far:
                 tail = in_band * _tail_mass(buf, xs, rk, count, n, nbits, xtab, a, beta, packed, flips, flip_bits, flip_w,
-                                            delta, sorted_d)
+                                            tail_weight, wlo, whi, delta, sorted_d)
                 far += tail
                 every += tail
             out_err[yy, xx] = far / (1.0 + every)
@@ -427,10 +428,13 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, a, beta, packed, 
 
 
 @njit(cache=True, inline="always")
-def _tail_mass(buf, xs, rk, count, n, nbits, xtab, a, beta, packed, flips, flip_bits, flip_w, delta, sorted_d):
-    """Sum of exp(-(L_c - L_1) / 2) over the codewords c = c1 xor h, h a low-weight codeword of a
-    binary linear code (`_flips`), other than the candidates already scored: with c1's fitted
-    levels, flipping bit i costs delta_i and ``L_c - L_1 = sum over h's bits of delta_i``."""
+def _tail_mass(buf, xs, rk, count, n, nbits, xtab, a, beta, packed, flips, flip_bits, flip_w, weight, wlo, whi,
+               delta, sorted_d):
+    """Sum of exp(-(L_c - L_1) / 2) over the codewords c = c1 xor h, h a codeword of weight
+    wlo..whi of a binary linear code, other than the candidates already scored: with c1's fitted
+    levels, flipping bit i costs delta_i and ``L_c - L_1 = sum over h's bits of delta_i``.  The
+    sum runs over `_flips`' evenly spaced sample of those h, times `weight` (their number / the
+    sample's), minus the scored candidates' own terms."""
     b, c = _fit(buf, xs, rk[0], n, xtab)
     for i in range(n):  # a flipped bit takes the sample's symbol x to 1 - x
         mo = b + c * xs[i]
@@ -455,33 +459,40 @@ def _tail_mass(buf, xs, rk, count, n, nbits, xtab, a, beta, packed, flips, flip_
     lowest = 0.0
     for i in range(flip_w[0]):
         lowest += sorted_d[i]
-    if flips.size * np.exp(-0.5 * min(max(lowest, -_CLIP), _CLIP)) < TAIL_FLOOR:
+    if flips.size * weight * np.exp(-0.5 * min(max(lowest, -_CLIP), _CLIP)) < TAIL_FLOOR:
         return 0.0
     own = packed[rk[0]]
     total = 0.0
     for j in range(flips.size):
-        word = own ^ flips[j]
-        skip = False
-        for k in range(1, count):
-            if packed[rk[k]] == word:
-                skip = True
-        if skip:
-            continue
         d = 0.0
         for t in range(flip_w[j]):
             d += delta[flip_bits[j, t]]
         total += np.exp(-0.5 * min(max(d, -_CLIP), _CLIP))
-    return total
+    total *= weight
+    # the scored candidates are not tail: take out what they add to the (estimated) sum
+    for k in range(1, count):
+        word = own ^ packed[rk[k]]
+        bits = 0
+        d = 0.0
+        for i in range(nbits):
+            if (word >> np.uint64(i)) & np.uint64(1):
+                bits += 1
+                d += delta[i]
+        if wlo <= bits <= whi:
+            total -= np.exp(-0.5 * min(max(d, -_CLIP), _CLIP))
+    return total if total > 0.0 else 0.0
 
 
 _XTAB: dict[tuple[int, bool], np.ndarray] = {}
-_FLIPS: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+_FLIPS: dict[int, tuple] = {}
 #: Codeword weights d_min .. d_min + TAIL_WEIGHTS enter the tail mass (`_flips`).
 TAIL_WEIGHTS = 2
-#: At most this many low-weight codewords enter the tail mass (lightest first).
-TAIL_WORDS = 1024
-#: The tail mass is skipped where its bound is below this (far below any error target).
-TAIL_FLOOR = 1e-7
+#: The tail mass sums an evenly spaced sample of at most this many of the low-weight codewords.
+TAIL_WORDS = 64
+#: The tail mass is skipped where its bound (all of them as likely as the third candidate) is
+#: below this (an error probability far below any target), and where the top three already
+#: give P(confused) >= 1/2 (invalid under any target; the published value is then a lower bound).
+TAIL_FLOOR = 1e-4
 
 
 def _xtab(code: Code, inverse: bool = False) -> np.ndarray:
@@ -503,15 +514,17 @@ def _samples(frames: np.ndarray, inverse: np.ndarray | None) -> np.ndarray:
     return frames if inverse is None else np.concatenate([frames, inverse], axis=0)
 
 
-def _flips(code: Code) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _flips(code: Code) -> tuple:
     """Tables of the tail mass (`_tail_mass`) of a binary linear code with n <= 64: packed (size,)
-    uint64 codewords (bit i = symbol i), flips (L,) uint64 its nonzero codewords of weight d_min ..
-    d_min + TAIL_WEIGHTS (at most TAIL_WORDS, lightest first), flip_bits (L, w_max) int32 their
-    bit positions and flip_w (L,) int32 their weights.  Other codes: L = 0 (no tail term)."""
+    uint64 codewords (bit i = symbol i), flips (L,) uint64 an evenly spaced sample (at most
+    TAIL_WORDS) of its nonzero codewords of weight wlo = d_min .. whi = d_min + TAIL_WEIGHTS,
+    flip_bits (L, w_max) int32 their bit positions, flip_w (L,) int32 their weights, weight = (all
+    such codewords) / L, wlo, whi.  Other codes: L = 0 (no tail term)."""
     key = id(code)
     hit = _FLIPS.get(key)
     if hit is None:
-        empty = (np.zeros(1, np.uint64), np.zeros(0, np.uint64), np.zeros((0, 1), np.int32), np.zeros(1, np.int32))
+        empty = (np.zeros(1, np.uint64), np.zeros(0, np.uint64), np.zeros((0, 1), np.int32), np.zeros(1, np.int32),
+                 1.0, 0, 0)
         hit = empty
         if code.q == 2 and code.is_linear and code.n <= 64:
             cb = np.asarray(code.codebook, np.uint64)
@@ -520,14 +533,15 @@ def _flips(code: Code) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
             nonzero = weights[weights > 0]
             if nonzero.size:
                 dmin = int(nonzero.min())
-                pick = np.nonzero((weights > 0) & (weights <= dmin + TAIL_WEIGHTS))[0]
-                pick = pick[np.argsort(weights[pick], kind="stable")][:TAIL_WORDS]
+                every = np.nonzero((weights > 0) & (weights <= dmin + TAIL_WEIGHTS))[0]
+                pick = every[np.unique(np.linspace(0, every.size - 1, min(TAIL_WORDS, every.size)).round().astype(int))]
                 wmax = int(weights[pick].max())
                 bits = np.zeros((pick.size, wmax), np.int32)
                 for j, r in enumerate(pick):
                     pos = np.nonzero(code.codebook[r])[0]
                     bits[j, :pos.size] = pos
-                hit = (packed, packed[pick].copy(), bits, weights[pick].astype(np.int32))
+                hit = (packed, packed[pick].copy(), bits, weights[pick].astype(np.int32), every.size / pick.size,
+                       dmin, dmin + TAIL_WEIGHTS)
         _FLIPS[key] = hit
     return hit
 
@@ -551,12 +565,13 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     gain = np.empty((h, w), np.float64)
     conf = np.empty((h, w), np.float32)
     contrast = np.empty((h, w), np.float32)
-    packed, flips, flip_bits, flip_w = _flips(code)
+    packed, flips, flip_bits, flip_w, tail_weight, wlo, whi = _flips(code)
     has_inv = inverse is not None
     xtab = _xtab(code, has_inv)
     _posterior(_samples(frames, inverse), white, black, np.float64(scale),
                xtab, code.n, cand,
-               float(noise.a), float(noise.beta), packed, flips, flip_bits, flip_w, min(1.0, choices / code.size),
+               float(noise.a), float(noise.beta), packed, flips, flip_bits, flip_w, float(tail_weight), int(wlo), int(whi),
+               min(1.0, choices / code.size),
                out_cand, out_dist, competitors, gain, conf, contrast)
     dark = not_lit_probability(gain, code, choices, inverse=has_inv)
     err = np.where(np.isfinite(gain), 1.0 - (1.0 - dark) * (1.0 - competitors), 1.0).astype(np.float32)
