@@ -287,16 +287,17 @@ def _noise_from(s2: np.ndarray, mu: np.ndarray, frames: np.ndarray, scale: float
     if s2v.size > FIT_PIXELS:  # a regular subsample (deterministic), as `_steps`
         step = -(-s2v.size // FIT_PIXELS)
         s2v, muv = s2v[::step], muv[::step]
-    edges = np.quantile(muv, np.linspace(0.0, 1.0, NOISE_BINS + 1))
-    idx = np.clip(np.searchsorted(edges, muv, side="right") - 1, 0, NOISE_BINS - 1)
+    # NOISE_BINS equal-count bins of the mean level (its quantile bins): one sort, medians per slice
+    order = np.argsort(muv, kind="stable")
+    muv, s2v = muv[order], s2v[order]
     corr = _chi2_median_ratio(frames.shape[0])
     xs, ys, ws = [], [], []
-    for k in range(NOISE_BINS):
-        sel = idx == k
-        if sel.sum() >= 20:
-            xs.append(float(np.median(muv[sel])))
-            ys.append(float(np.median(s2v[sel])) / corr)
-            ws.append(float(sel.sum()))
+    for chunk in np.array_split(np.arange(muv.size), NOISE_BINS):
+        if chunk.size >= 20:
+            lo, hi = int(chunk[0]), int(chunk[-1]) + 1
+            xs.append(float(np.median(muv[lo:hi])))
+            ys.append(float(np.median(s2v[lo:hi])) / corr)
+            ws.append(float(hi - lo))
     if len(xs) < 2:
         return prior_noise
     x, y, wt = np.array(xs), np.array(ys), np.sqrt(np.array(ws))
