@@ -65,7 +65,7 @@ def _nll_reference(r: np.ndarray, x: np.ndarray | None, a: float, beta: float) -
 
 def _tail_reference(r: np.ndarray, code, best: int, scored: list[int], a: float, beta: float) -> float:
     """The tail mass as `edge.decode.posterior` defines it: over the codewords h of weight
-    d_min .. d_min + 2 (an evenly spaced sample of at most 64, scaled up to all of them),
+    d_min .. d_min + 2 (an evenly spaced sample of at most 1024, scaled up to all of them),
     exp(-(sum of per-bit flip costs of h under best's fitted levels) / 2), minus the same term of
     the other scored candidates where they are such a flip."""
     n = code.n
@@ -84,7 +84,7 @@ def _tail_reference(r: np.ndarray, code, best: int, scored: list[int], a: float,
     weights = code.codebook.sum(axis=1)
     dmin = weights[weights > 0].min()
     low = np.nonzero((weights > 0) & (weights <= dmin + 2))[0]
-    sample = low[np.unique(np.linspace(0, low.size - 1, min(64, low.size)).round().astype(int))]
+    sample = low[np.unique(np.linspace(0, low.size - 1, min(1024, low.size)).round().astype(int))]
     term = lambda h: np.exp(-0.5 * delta[np.asarray(h, bool)].sum())  # noqa: E731
     total = low.size / sample.size * sum(term(code.codebook[h]) for h in sample)
     for k in scored[1:]:
@@ -249,3 +249,34 @@ def test_error_rule_takes_inverse_frames_and_auto_keeps_the_confidence_rule_for_
     assert err(explicit) < err(plain)
     auto = decode(f, w, b, GRAY, inverse=inv)
     assert auto.error is None and auto.valid.mean() > 0.5
+
+
+@pytest.mark.parametrize("gen", ["edge.sim", "plane-box-sphere"])
+@pytest.mark.parametrize("name", ["gray-10", "ecc-22-10"])
+def test_error_probability_is_calibrated(gen, name):
+    """Predicted P(wrong) against the observed rate of columns more than one row off, pooled over
+    ambient 0.5 / 1 / 2 and two seeds, per bin from 0.5 % to 20 % with >= 200 pixels: within a
+    factor 5 (measured: gray-10 within 1.3x on both generators; ecc-22-10 up to 3x under on
+    edge.sim and up to 4.4x over on the independent renderer, tools/eval_posterior.py; issue 11
+    asks for 2x, which ecc-22-10 does not reach yet)."""
+    code = get_code(name)
+    pred, obs = [], []
+    for ratio in (0.5, 1.0, 2.0):
+        for seed in (0, 1):
+            if gen == "edge.sim":
+                f, w, b, bd, col, lit = _sim(code, ratio, seed=seed)
+            else:
+                f, w, b, bd, col, lit = _pbs(code, ratio, seed=seed + 3)
+            d = decode(f, w, b, code, bit_depth=bd)
+            pred.append(d.error[lit])
+            obs.append((np.abs(d.candidates[..., 0] - col) > 1)[lit])
+    p, o = np.concatenate(pred), np.concatenate(obs)
+    checked = 0
+    for lo, hi in ((0.005, 0.01), (0.01, 0.02), (0.02, 0.05), (0.05, 0.1), (0.1, 0.2)):
+        s = (p >= lo) & (p < hi)
+        if s.sum() >= 200:
+            ratio = o[s].mean() / p[s].mean()
+            print(f"{gen} {name} [{lo}, {hi}): predicted {p[s].mean():.4f} observed {o[s].mean():.4f} ({s.sum()})")
+            assert 0.2 <= ratio <= 5.0, (lo, p[s].mean(), o[s].mean())
+            checked += 1
+    assert checked >= 3

@@ -489,7 +489,7 @@ _FLIPS: dict[int, tuple] = {}
 #: Codeword weights d_min .. d_min + TAIL_WEIGHTS enter the tail mass (`_flips`).
 TAIL_WEIGHTS = 2
 #: The tail mass sums an evenly spaced sample of at most this many of the low-weight codewords.
-TAIL_WORDS = 64
+TAIL_WORDS = 1024
 #: The tail mass is skipped where its bound (all of them as likely as the third candidate) is
 #: below this (an error probability far below any target), and where the top three already
 #: give P(confused) >= 1/2 (invalid under any target; the published value is then a lower bound).
