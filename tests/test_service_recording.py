@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from _service_helpers import DATA, TEST_PROFILE, load_test_profile
@@ -44,7 +45,14 @@ def test_service_record_then_replay_bit_exact(tmp_path):
     assert status["recorder"]["frames_lost"] == 0 and rec.frames_lost == 0
     reader = RecordingReader(out)
     assert reader.complete and reader.profile.name == "test-small"
-    assert len(list(reader.outputs())) == 3
+    outputs = list(reader.outputs())
+    assert len(outputs) == 3
+    from edge.decode import DEFAULT_SETTINGS
+
+    for o in outputs:  # the library's rule: P(wrong) recorded, below max_error where the decoder's column is published
+        assert o.error is not None and np.all(np.isnan(o.error[o.depth_mm == 0]))
+        published = ~np.isnan(o.error)
+        assert published.mean() > 0.5 and np.all(o.error[published] < DEFAULT_SETTINGS.max_error)
     report = replay_recording(out)
     assert report.ok, report.lines()
     assert report.stacks_compared == 3 and report.stacks_matched == 3
@@ -83,6 +91,20 @@ def test_replay_detects_a_changed_depth(tmp_path):
         DepthPipeline.process = original
     assert not report.ok and len(report.mismatches) == 2
     assert "depth: 1 of 19200 pixels differ" in report.mismatches[0]
+
+    def tampered_error(self, stack, masked_capture=None):  # one ulp of one published P(wrong)
+        res = original(self, stack, masked_capture)
+        y, x = np.argwhere(res.depth_mm > 0)[0]
+        res.error[y, x] = np.nextafter(res.error[y, x], np.float32(1))
+        return res
+
+    DepthPipeline.process = tampered_error
+    try:
+        report = replay_mod.replay_recording(out)
+    finally:
+        DepthPipeline.process = original
+    assert not report.ok and len(report.mismatches) == 2
+    assert "error: 1 of 19200 pixels differ" in report.mismatches[0] and "depth" not in report.mismatches[0]
 
 
 def test_replay_bad_files(tmp_path):

@@ -111,6 +111,7 @@ class RecordedOutput:
     stack: int
     sequence: int
     info: dict[str, Any] = field(default_factory=dict)
+    error: np.ndarray | None = None  # (H, W) float32 P(wrong), NaN = no estimate; None if not recorded
 
 
 @dataclass
@@ -146,13 +147,14 @@ def _reason(exc: BaseException) -> str:
 
 
 class OutputPairs:
-    """Pairs a recording's ``output_info`` / ``depth`` / ``confidence`` messages of one sequence
-    number into a `RecordedOutput` (the writer puts them in that order; ``output_info`` may be
-    missing: the depth message's log time is the timestamp then)."""
+    """Pairs a recording's ``output_info`` / ``depth`` / (optional) ``error`` / ``confidence``
+    messages of one sequence number into a `RecordedOutput` (the writer puts them in that order;
+    ``output_info`` may be missing: the depth message's log time is the timestamp then)."""
 
     def __init__(self) -> None:
         self._info: dict[int, dict[str, Any]] = {}
         self._depth: dict[int, tuple[np.ndarray, int]] = {}
+        self._error: dict[int, np.ndarray] = {}
 
     def take(self, leaf: str, m: Any) -> RecordedOutput | None:
         """Feed one message (``leaf``: the last part of its topic); the output it completes, or None."""
@@ -160,11 +162,14 @@ class OutputPairs:
             self._info[m.sequence] = m.value
         elif leaf == "depth":
             self._depth[m.sequence] = (m.value, m.log_time)
+            self._error.pop(m.sequence, None)
+        elif leaf == "error" and m.sequence in self._depth:
+            self._error[m.sequence] = m.value
         elif leaf == "confidence" and m.sequence in self._depth:
             d, t = self._depth.pop(m.sequence)
             info = self._info.pop(m.sequence, {})
             return RecordedOutput(d, m.value, int(info.get("timestamp_ns", t)), int(info.get("stack", -1)),
-                                  int(m.sequence), info)
+                                  int(m.sequence), info, error=self._error.pop(m.sequence, None))
         return None
 
 
@@ -352,7 +357,7 @@ class RecordingReader:
                 yield item
 
     def outputs(self) -> Iterator[RecordedOutput]:
-        """Recorded depth / confidence pairs in file order."""
+        """Recorded outputs (depth, confidence and the error probability where recorded) in file order."""
         for item in self._events():
             if isinstance(item, RecordedOutput):
                 yield item
