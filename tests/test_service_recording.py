@@ -184,3 +184,21 @@ def test_sigkill_recover_up_to_last_complete_chunk(tmp_path):
     assert reader.complete
     assert len(list(reader.frames())) >= 24
     assert r.returncode == 0, r.stdout + r.stderr  # what was recovered replays bit-exact
+
+
+def test_recording_from_before_the_error_rule_replays_with_its_rule():
+    """A recorded profile without decoder.validity predates the error-probability rule: it is read
+    with the contrast / confidence rule and calibration levels it was decoded with (the previous
+    tests/data/sim-small.mcap replays bit for bit so); a profile that states validity is kept."""
+    from edge.decode.settings import from_profile
+    from edge.io.mcap_reader import recorded_profile_dict
+    from edge.profiles import profile_from_dict as build_profile, profile_to_dict
+
+    data = profile_to_dict(load_test_profile())
+    for key in ("validity", "levels", "metric", "t_low", "t_high", "spatial_check", "max_error", "backend"):
+        del data["decoder"][key]  # the decoder table of the recordings made before those keys
+    old = build_profile(recorded_profile_dict(data))
+    assert from_profile(old).rule(False) == "confidence" and old.decoder.levels == "calibration"
+    assert from_profile(build_profile(data)).rule(False) == "error"  # what it would decode with otherwise
+    now = profile_to_dict(load_test_profile())
+    assert recorded_profile_dict(now) == now

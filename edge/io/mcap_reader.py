@@ -146,6 +146,21 @@ def _reason(exc: BaseException) -> str:
     return describe_error(exc)
 
 
+#: The decoder settings of a recording made before profiles had ``decoder.validity`` (before the
+#: error-probability rule existed): what its service decoded with, for the keys it does not store.
+PRE_VALIDITY_DECODER = {"validity": "confidence", "levels": "calibration"}
+
+
+def recorded_profile_dict(data: Any) -> Any:
+    """A recorded profile's dict as it decodes: every recording stores every key of its time
+    (`edge.profiles.profile_to_dict`), so one whose ``decoder`` table has no ``validity`` predates
+    the error-probability rule and decoded with `PRE_VALIDITY_DECODER` (filled in where absent;
+    keys added since keep their defaults, which are what it used).  Other dicts come back as given."""
+    if isinstance(data, dict) and isinstance(data.get("decoder"), dict) and "validity" not in data["decoder"]:
+        data = {**data, "decoder": {**PRE_VALIDITY_DECODER, **data["decoder"]}}
+    return data
+
+
 class OutputPairs:
     """Pairs a recording's ``output_info`` / ``depth`` / (optional) ``error`` / ``confidence``
     messages of one sequence number into a `RecordedOutput` (the writer puts them in that order;
@@ -230,7 +245,8 @@ class RecordingReader:
             raise RecordingError(f"{self.path}: recorded profile fails its sha256 check "
                                  f"(the profile metadata is corrupt); cannot trust this recording")
         try:
-            return profile_from_dict(json.loads(meta["json"]), source=f"{self.path} (recorded profile)")
+            return profile_from_dict(recorded_profile_dict(json.loads(meta["json"])),
+                                     source=f"{self.path} (recorded profile)")
         except (ValueError, ProfileError) as exc:
             raise RecordingError(f"{self.path}: recorded profile is invalid: {exc}") from None
 
