@@ -226,8 +226,8 @@ def check_runtime_pipeline(name):
     from edge.decode.backends.cuda import staging
     from edge.runtime.pipeline import DepthPipeline
 
-    cpu_pipe = DepthPipeline(load_test_profile())
-    gpu_pipe = DepthPipeline(load_test_profile(decoder={"backend": "cuda"}))
+    cpu_pipe = DepthPipeline(load_test_profile(decoder=CONFIDENCE_RULE))
+    gpu_pipe = DepthPipeline(load_test_profile(decoder={**CONFIDENCE_RULE, "backend": "cuda"}))
     code = cpu_pipe.code
     h, w = 3, 24
     cap, white, black = capture(code, h, w, band_center=-30, dark=0.05)
@@ -240,6 +240,40 @@ def check_runtime_pipeline(name):
 
 
 HOST = ("column", "confidence", "valid")
+#: The runtime checks of the device's whole decode and of staging run the "confidence" rule (the
+#: test profile's default is the library's "error" rule: device search, host posterior, no staging;
+#: `check_runtime_error_rule`).
+CONFIDENCE_RULE = {"validity": "confidence"}
+
+
+def check_runtime_error_rule(name):
+    """The test profile as it is (the library's defaults: the "error" rule) with backend "cuda":
+    no frame staging, the device's candidate search and the host posterior give the CPU
+    pipeline's column, confidence, valid mask and error probability, and a whole stack's depth
+    result equals the CPU's (error image included)."""
+    from _service_helpers import load_test_profile
+
+    from edge.runtime.assembly import StackAssembler
+    from edge.runtime.pipeline import DepthPipeline
+
+    cpu_pipe = DepthPipeline(load_test_profile())
+    gpu_pipe = DepthPipeline(load_test_profile(decoder={"backend": "cuda"}))
+    ok = cpu_pipe.rule == gpu_pipe.rule == "error" and gpu_pipe.stager is None and gpu_pipe.on_frame is None
+    cap, white, black = capture(cpu_pipe.code, 3, 24, band_center=-30, dark=0.05)
+    ref = cpu_pipe.decode(cap.frames, white, black)
+    got = gpu_pipe.decode(cap.frames, white, black)
+    ok &= all(np.array_equal(getattr(ref, f), getattr(got, f)) for f in (*HOST, "error")) and ref.error is not None
+    m = len(gpu_pipe.schedule)
+    same = 0
+    for k, images in enumerate(stacks_for(gpu_pipe.code, 2)):
+        asm = StackAssembler(gpu_pipe.schedule)
+        stack = None
+        for f in stack_frames(gpu_pipe, images, k, k * m):
+            stack = asm.push(f) or stack
+        a, b = cpu_pipe.process(stack), gpu_pipe.process(stack)
+        same += same_result(a, b) and a.error is not None and a.error.tobytes() == b.error.tobytes()
+    ok &= same == 2
+    emit(name, ok, f"valid {int(ref.valid.sum())}, stacks equal {same} of 2")
 
 
 class Downloads:
@@ -278,8 +312,8 @@ def check_reduced_download(name):
     cap, white, black = capture(code, h, w, band_center=-30, dark=0.05)
     details, ok = [], True
     for method in ("soft", "list+median"):
-        cpu_pipe = DepthPipeline(load_test_profile(decoder={"method": method}))
-        gpu_pipe = DepthPipeline(load_test_profile(decoder={"method": method, "backend": "cuda"}))
+        cpu_pipe = DepthPipeline(load_test_profile(decoder={**CONFIDENCE_RULE, "method": method}))
+        gpu_pipe = DepthPipeline(load_test_profile(decoder={**CONFIDENCE_RULE, "method": method, "backend": "cuda"}))
         ref = cpu_pipe.decode(cap.frames, white, black)
         with Downloads() as dl:
             got = gpu_pipe.decode(cap.frames, white, black)
@@ -326,7 +360,8 @@ def pipes():
 
     from edge.runtime.pipeline import DepthPipeline
 
-    return DepthPipeline(load_test_profile()), DepthPipeline(load_test_profile(decoder={"backend": "cuda"}))
+    return (DepthPipeline(load_test_profile(decoder=CONFIDENCE_RULE)),
+            DepthPipeline(load_test_profile(decoder={**CONFIDENCE_RULE, "backend": "cuda"})))
 
 
 def check_staged_frames(name):
@@ -502,7 +537,7 @@ def check_service_staged(name):
         def warm_up(self):
             return 0.0
 
-    profile = load_test_profile(decoder={"backend": "cuda"})
+    profile = load_test_profile(decoder={**CONFIDENCE_RULE, "backend": "cuda"})
     pipe = NoWarmUp(profile)
     imgs = stacks_for(pipe.code, 3)
     m = len(pipe.schedule)
@@ -523,7 +558,7 @@ def check_service_staged(name):
                 raise EndOfStream()
             if len(self.frames) == len(frames):
                 seen["prepared"] = svc.pipeline.stager.shape == (3, 24)
-                svc.update_config({"decoder": {"min_confidence": 0.35}})
+                svc.update_config({"decoder": {"min_confidence": 0.6}})
             time.sleep(0.01)
             return self.frames.pop(0)
 
@@ -547,8 +582,8 @@ def check_service_staged(name):
     svc = Service(profile, ListSensor(), sinks=[sink], queue_capacity=8, pipeline_factory=NoWarmUp,
                   warm_variants=False)
     status = svc.run(stacks=3)
-    cpu_pipe = DepthPipeline(load_test_profile(decoder={"min_confidence": 0.35}))
-    old_pipe = DepthPipeline(load_test_profile())
+    cpu_pipe = DepthPipeline(load_test_profile(decoder={**CONFIDENCE_RULE, "min_confidence": 0.6}))
+    old_pipe = DepthPipeline(load_test_profile(decoder=CONFIDENCE_RULE))
     good = len(sink.results) == 3 and status.get("gpu_stacks_staged") == 3 and seen.get("prepared")
     differs = False
     for r in sink.results:
@@ -612,6 +647,7 @@ def main() -> int:
         ("staged-fallback", lambda: check_staged_fallback("staged-fallback")),
         ("staged-threads", lambda: check_staged_threads("staged-threads")),
         ("service-staged", lambda: check_service_staged("service-staged")),
+        ("runtime-error-rule", lambda: check_runtime_error_rule("runtime-error-rule")),
     ]
     only = [a for a in sys.argv[1:] if not a.startswith("--")]
     for name, fn in checks:

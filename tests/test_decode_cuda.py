@@ -67,7 +67,7 @@ CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inverse"
           "validity", "refit-kernels-ecc-22-10", "refit-kernels-rs16-15-4", "decode-soft", "decode-hard",
           "decode-list+median", "decode-soft-refit", "decode-hard-refit-uint16", "decode-soft-inverse-nocheck",
           "staging", "runtime-pipeline", "reduced-download", "staged-frames", "staged-fallback", "staged-threads",
-          "service-staged"]
+          "service-staged", "runtime-error-rule"]
 
 
 @pytest.fixture(scope="module")

@@ -45,6 +45,41 @@ def test_profile_maps_every_field(tmp_path):
     assert set(FIELDS) - {"sigma_r", "sigma_s"} <= set(vars(p.decoder)), "a settings field a profile cannot express"
 
 
+def test_profile_defaults_are_the_librarys():
+    """One source of defaults: a [decoder] table with only the band decodes as `decode()` does
+    (the camera's noise model aside), the profile layout documents those defaults, and the
+    shipped column-code profiles set nothing but the method and the band."""
+    import dataclasses
+    import re
+    import tomllib
+    from pathlib import Path
+
+    import edge.profiles.settings as profile_settings
+    from edge.profiles.settings import build_profile, profile_to_dict
+
+    base = profile_to_dict(load_profile("sim-dlp"))
+    base["decoder"] = {"min_disparity": base["decoder"]["min_disparity"],
+                       "max_disparity": base["decoder"]["max_disparity"]}
+    p = build_profile(base)
+    assert from_profile(p) == DEFAULT_SETTINGS.replace(sigma_r=max(p.camera.sigma_r, 1e-4), sigma_s=p.camera.sigma_s)
+    assert from_profile(p).rule(False) == "error"
+    shared = [f for f in dataclasses.fields(profile_settings.DecoderSettings) if f.name in FIELDS]
+    assert {f.name for f in shared} == set(FIELDS) - {"sigma_r", "sigma_s"}
+    assert all(f.default == getattr(DEFAULT_SETTINGS, f.name) for f in shared)
+    layout = profile_settings.__doc__.split("[decoder]", 1)[1].split("[edc]", 1)[0]
+    documented = dict(re.findall(r"^\s*(\w+) = (\S+)", layout, flags=re.M))
+    assert {k for k in documented if k in FIELDS} >= {"method", "validity", "max_error", "levels", "min_contrast",
+                                                      "min_confidence", "metric", "backend"}
+    for key, text in documented.items():
+        if key in FIELDS:
+            assert tomllib.loads(f"v = {text}")["v"] == getattr(DEFAULT_SETTINGS, key), key
+    root = Path(__file__).resolve().parents[1]
+    for path in [*(root / "firmware_profiles").glob("*.toml"), root / "tests" / "data" / "profiles" / "test-small.toml"]:
+        data = tomllib.loads(path.read_text())
+        if data["projector"].get("kind", "columns") == "columns":
+            assert set(data["decoder"]) <= {"method", "min_disparity", "max_disparity"}, path.name
+
+
 def test_auto_backend_falls_back_with_a_log_line(caplog, monkeypatch):
     monkeypatch.setattr(backends, "available", lambda name: name == "cpu")
     monkeypatch.setattr(backends, "_FELL_BACK", [])

@@ -52,6 +52,7 @@ def test_foxglove_sink_advertises_channels_and_streams_depth_and_points():
             adv = json.loads(_recv_until(ws, lambda m: isinstance(m, str) and '"advertise"' in m))
             channels = {c["topic"]: c for c in adv["channels"]}
             assert {"/test-small/depth": "foxglove.RawImage", "/test-small/confidence": "foxglove.RawImage",
+                    "/test-small/error": "foxglove.RawImage",
                     "/test-small/points": "foxglove.PointCloud",
                     "/test-small/calibration": "foxglove.CameraCalibration",
                     "/test-small/tf": "foxglove.FrameTransforms"}.items() <= \

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 from mcap.records import Chunk, DataEnd
+from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
 from mcap.stream_reader import StreamReader
 
 from edge.io.mcap import (
@@ -305,3 +306,27 @@ def test_recorder_extra_channel_public_api(tmp_path, profile):
                for s, c, m in make_reader(f).iter_messages(topics=[topic])]
     assert got == [("edge.Extra", "jsonschema", "json", 5, 9, b'{"a": 1}'),
                    ("edge.Extra", "jsonschema", "json", 6, 0, b'{"a": 2}')]
+
+
+def test_error_probability_round_trip(tmp_path, profile):
+    """/<device>/error: 32FC1 RawImage between depth and confidence, read back bit for bit (NaN
+    included) into RecordedOutput.error; a depth map written without one reads back None."""
+    path = tmp_path / "err.mcap"
+    rng = np.random.default_rng(5)
+    err = rng.random((H, W), dtype=np.float32) * np.float32(0.01)
+    err[::3, ::2] = np.nan
+    with Recorder(path, profile) as rec:
+        for s in range(2):
+            d, c = _depth(s)
+            rec.write_depth(d, c, timestamp_ns=1000 + s, stack=s, sequence=s, error=err if s == 0 else None)
+        with pytest.raises(ValueError, match="error float32"):
+            rec.write_depth(d, c, timestamp_ns=3000, stack=2, sequence=2, error=err.astype(np.float64))
+    outs = list(RecordingReader(path).outputs())
+    assert [o.stack for o in outs] == [0, 1]
+    assert outs[0].error is not None and outs[0].error.dtype == np.float32
+    assert outs[0].error.tobytes() == err.tobytes() and outs[1].error is None
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        encodings = [RawImage.FromString(m.data).encoding
+                     for _, ch, m in reader.iter_messages(topics=[f"/{profile.zenoh.device}/error"])]
+    assert encodings == ["32FC1"]

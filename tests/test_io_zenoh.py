@@ -205,3 +205,44 @@ def test_cli_subscribe_writes_png(publisher, endpoint, tmp_path, capsys):
 def test_cli_subscribe_without_service_fails_cleanly(capsys):
     rc = cli_main(["subscribe", "--connect", f"tcp/127.0.0.1:{_free_port()}", "--seconds", "0.5"])
     assert rc == 1 and "no depth from sl/sim-dlp" in capsys.readouterr().out
+
+
+def _error(i: int) -> np.ndarray:
+    rng = np.random.default_rng(100 + i)
+    e = rng.random((H, W), dtype=np.float32) * np.float32(0.02)
+    e[rng.random((H, W)) < 0.3] = np.nan  # no depth there
+    return e
+
+
+def test_error_probability_round_trip_is_bit_exact(publisher, subscriber):
+    """sl/<device>/error: 32FC1 little-endian, NaN kept, paired with its depth by sequence; a
+    depth map published without one arrives with error None."""
+    raw = []
+    sub = subscriber.session.declare_subscriber("sl/sim-dlp/error", lambda s: raw.append(
+        (json.loads(s.attachment.to_bytes()), str(s.encoding))))
+    time.sleep(0.2)
+    try:
+        for i in range(4):
+            d, c = _depth(i)
+            publisher.publish_depth(d, c, timestamp_ns=time.time_ns(), sequence=i, stack=i,
+                                    error=_error(i) if i % 2 == 0 else None)
+            time.sleep(0.01)
+        for i in range(4):
+            sample = subscriber.receive(timeout=3.0)
+            assert sample is not None and sample.header["sequence"] == i
+            assert sample.header.get("error") == (True if i % 2 == 0 else None)  # the subscriber waits for it
+            if i % 2 == 0:
+                assert sample.error is not None and sample.error.dtype == np.float32
+                assert sample.error.tobytes() == _error(i).tobytes()
+            else:
+                assert sample.error is None
+        deadline = time.monotonic() + 3
+        while len(raw) < 2 and time.monotonic() < deadline:
+            time.sleep(0.02)
+    finally:
+        sub.undeclare()
+    assert [h["sequence"] for h, _ in raw] == [0, 2]
+    assert all(h["encoding"] == "32FC1" and h["units"] == "probability" and "32FC1" in enc for h, enc in raw)
+    with pytest.raises(ValueError, match="error"):
+        publisher.publish_depth(*_depth(0), timestamp_ns=0, sequence=9, error=np.zeros((H, W), np.float64))
+    assert subscriber.errors == []

@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from _service_helpers import DATA, TEST_PROFILE, load_test_profile
@@ -44,7 +45,14 @@ def test_service_record_then_replay_bit_exact(tmp_path):
     assert status["recorder"]["frames_lost"] == 0 and rec.frames_lost == 0
     reader = RecordingReader(out)
     assert reader.complete and reader.profile.name == "test-small"
-    assert len(list(reader.outputs())) == 3
+    outputs = list(reader.outputs())
+    assert len(outputs) == 3
+    from edge.decode import DEFAULT_SETTINGS
+
+    for o in outputs:  # the library's rule: P(wrong) recorded, below max_error where the decoder's column is published
+        assert o.error is not None and np.all(np.isnan(o.error[o.depth_mm == 0]))
+        published = ~np.isnan(o.error)
+        assert published.mean() > 0.5 and np.all(o.error[published] < DEFAULT_SETTINGS.max_error)
     report = replay_recording(out)
     assert report.ok, report.lines()
     assert report.stacks_compared == 3 and report.stacks_matched == 3
@@ -83,6 +91,20 @@ def test_replay_detects_a_changed_depth(tmp_path):
         DepthPipeline.process = original
     assert not report.ok and len(report.mismatches) == 2
     assert "depth: 1 of 19200 pixels differ" in report.mismatches[0]
+
+    def tampered_error(self, stack, masked_capture=None):  # one ulp of one published P(wrong)
+        res = original(self, stack, masked_capture)
+        y, x = np.argwhere(res.depth_mm > 0)[0]
+        res.error[y, x] = np.nextafter(res.error[y, x], np.float32(1))
+        return res
+
+    DepthPipeline.process = tampered_error
+    try:
+        report = replay_mod.replay_recording(out)
+    finally:
+        DepthPipeline.process = original
+    assert not report.ok and len(report.mismatches) == 2
+    assert "error: 1 of 19200 pixels differ" in report.mismatches[0] and "depth" not in report.mismatches[0]
 
 
 def test_replay_bad_files(tmp_path):
@@ -162,3 +184,21 @@ def test_sigkill_recover_up_to_last_complete_chunk(tmp_path):
     assert reader.complete
     assert len(list(reader.frames())) >= 24
     assert r.returncode == 0, r.stdout + r.stderr  # what was recovered replays bit-exact
+
+
+def test_recording_from_before_the_error_rule_replays_with_its_rule():
+    """A recorded profile without decoder.validity predates the error-probability rule: it is read
+    with the contrast / confidence rule and calibration levels it was decoded with (the previous
+    tests/data/sim-small.mcap replays bit for bit so); a profile that states validity is kept."""
+    from edge.decode.settings import from_profile
+    from edge.io.mcap_reader import recorded_profile_dict
+    from edge.profiles import profile_from_dict as build_profile, profile_to_dict
+
+    data = profile_to_dict(load_test_profile())
+    for key in ("validity", "levels", "metric", "t_low", "t_high", "spatial_check", "max_error", "backend"):
+        del data["decoder"][key]  # the decoder table of the recordings made before those keys
+    old = build_profile(recorded_profile_dict(data))
+    assert from_profile(old).rule(False) == "confidence" and old.decoder.levels == "calibration"
+    assert from_profile(build_profile(data)).rule(False) == "error"  # what it would decode with otherwise
+    now = profile_to_dict(load_test_profile())
+    assert recorded_profile_dict(now) == now

@@ -51,6 +51,12 @@ def test_edge_run_subprocess_publishes_to_subscriber():
     assert s.header["units"] == "mm" and s.header["width"] == 160
     assert np.count_nonzero(s.depth_mm) > 0.5 * s.depth_mm.size
     assert s.confidence is not None and s.confidence.dtype == np.uint8
+    # the library's default rule: P(wrong) of every published pixel below max_error, NaN without depth
+    from edge.decode import DEFAULT_SETTINGS
+
+    assert s.error is not None and s.error.dtype == np.float32 and s.error.shape == s.depth_mm.shape
+    assert np.array_equal(np.isnan(s.error), s.depth_mm == 0)
+    assert np.all(s.error[s.depth_mm > 0] < DEFAULT_SETTINGS.max_error)
     assert s.latency_ms > 0
     assert "stopped by signal SIGTERM" in out and "stacks: complete" in out
 
@@ -84,7 +90,9 @@ def test_config_update_over_zenoh_and_resubscribe():
                 sub.update_config({"decoder": {"min_confidence": 5.0}})
             with pytest.raises(ConfigRejected, match="camera.width"):
                 sub.update_config({"camera": {"width": 64}})
-            assert sub.get_config()["decoder"]["min_confidence"] == 0.0
+            from edge.decode import DEFAULT_SETTINGS  # the profile does not set it: the library's default
+
+            assert sub.get_config()["decoder"]["min_confidence"] == DEFAULT_SETTINGS.min_confidence
             new = sub.update_config({"decoder": {"min_confidence": 0.25}})
             assert new["decoder"]["min_confidence"] == 0.25
             assert service.profile.decoder.min_confidence == 0.25

@@ -12,7 +12,7 @@ def register(subparsers: Any) -> None:
     sub = p.add_subparsers(dest="sim_command", metavar="SIM_COMMAND")
     r = sub.add_parser("record", help="record N simulated stacks (raw frames + decoded depth) to MCAP",
                        description="Render N stacks of the profile's moving scene with the simulated sensor "
-                                   "and write them to MCAP, with the depth and confidence the service "
+                                   "and write them to MCAP, with the depth, confidence (and error probability) the service "
                                    "computes for them (so `edge replay` can check the file bit for bit).")
     r.add_argument("out", metavar="OUT.mcap")
     r.add_argument("--stacks", type=int, required=True, metavar="N")
@@ -69,7 +69,7 @@ def record_simulation(out: str, profile, stacks: int, *, first_stack: int = 0, o
                         counts["frames"] += 1
                     rec.write_depth(result.depth_mm, result.confidence, timestamp_ns=result.timestamp_ns,
                                     stack=result.stack, sequence=result.sequence, edc_rounds=result.edc_rounds,
-                                    valid_fraction=round(result.valid_fraction, 6))
+                                    valid_fraction=round(result.valid_fraction, 6), error=result.error)
                     counts["outputs"] += 1
         finally:
             sensor.stop()

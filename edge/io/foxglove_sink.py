@@ -10,6 +10,8 @@ serves both:
 topic                                 schema                        content
 ====================================  ============================  ==========================
 ``/<device>/depth``                   foxglove.RawImage             16UC1 millimetres
+``/<device>/error``                   foxglove.RawImage             32FC1 P(wrong), NaN = none
+                                                                    (the "error" rule only)
 ``/<device>/confidence``              foxglove.RawImage             mono8
 ``/<device>/calibration``             foxglove.CameraCalibration    with every depth map
 ``/<device>/points``                  foxglove.PointCloud           ``[points] publish``
@@ -55,8 +57,10 @@ class FoxgloveSink:
         self.frames = frame_ids(dev)
         self.context = foxglove.Context()
         ctx = self.context
-        self.topics = {leaf: f"/{dev}/{leaf}" for leaf in ("depth", "confidence", "calibration", "points", "tf", "status")}
+        self.topics = {leaf: f"/{dev}/{leaf}" for leaf in ("depth", "error", "confidence", "calibration", "points", "tf",
+                                                           "status")}
         self._depth = channels.RawImageChannel(self.topics["depth"], context=ctx)
+        self._error = channels.RawImageChannel(self.topics["error"], context=ctx)
         self._confidence = channels.RawImageChannel(self.topics["confidence"], context=ctx)
         self._calibration = channels.CameraCalibrationChannel(self.topics["calibration"], context=ctx)
         self._points = channels.PointCloudChannel(self.topics["points"], context=ctx)
@@ -107,6 +111,8 @@ class FoxgloveSink:
                 P=[k[0], k[1], k[2], 0.0, k[3], k[4], k[5], 0.0, 0.0, 0.0, 1.0, 0.0]), log_time=t)
         if self._depth.has_sinks():
             self._depth.log(self._image(result.depth_mm, "16UC1", t), log_time=t)
+        if result.error is not None and self._error.has_sinks():
+            self._error.log(self._image(result.error, "32FC1", t), log_time=t)
         if self._confidence.has_sinks():
             self._confidence.log(self._image(result.confidence, "mono8", t), log_time=t)
         if self.profile.points.publish and self._points.has_sinks():

@@ -15,6 +15,12 @@ topic                       schema (encoding)           content
                                                         backend-specific keys
 ``/<device>/depth``         foxglove.RawImage (pb)      ``16UC1`` millimetres, 0 = invalid
 ``/<device>/confidence``    foxglove.RawImage (pb)      ``mono8``, higher = more confident
+``/<device>/error``         foxglove.RawImage (pb)      ``32FC1``: the decoder's estimated
+                                                        P(wrong column) of each depth pixel, NaN
+                                                        where no depth / no estimate; only for
+                                                        depth maps decoded under the "error"
+                                                        rule (`edge.runtime.depth.error_image`),
+                                                        written between depth and confidence
 ``/<device>/output_info``   edge.OutputInfo (json)      one per depth map, just before it:
                                                         stack, sequence, timestamp_ns + extras
 ``/<device>/stack``         edge.StackInfo (json)       one per decoded stack, after its depth:
@@ -93,7 +99,7 @@ PROFILE_ATTACHMENT = "profile.json"
 # Encodings written for each dtype, and the dtype read back for each encoding.
 _RAW_ENCODING = {np.dtype(np.uint8): "mono8", np.dtype(np.uint16): "mono16"}
 _DECODE = {"mono8": np.dtype(np.uint8), "8UC1": np.dtype(np.uint8),
-           "mono16": np.dtype("<u2"), "16UC1": np.dtype("<u2")}
+           "mono16": np.dtype("<u2"), "16UC1": np.dtype("<u2"), "32FC1": np.dtype("<f4")}
 
 JSON_SCHEMAS: dict[str, dict[str, Any]] = {
     "edge.FrameInfo": {
@@ -125,10 +131,10 @@ JSON_SCHEMAS: dict[str, dict[str, Any]] = {
 
 
 def topics(device: str) -> dict[str, str]:
-    """Topic names for one device: keys raw, raw_info, depth, confidence, output_info, stack, calibration,
-    points, tf."""
+    """Topic names for one device: keys raw, raw_info, depth, error, confidence, output_info, stack,
+    calibration, points, tf."""
     return {leaf: f"/{device}/{leaf}" for leaf in
-            ("raw", "raw_info", "depth", "confidence", "output_info", "stack", "calibration", "points", "tf")}
+            ("raw", "raw_info", "depth", "error", "confidence", "output_info", "stack", "calibration", "points", "tf")}
 
 
 def _timestamp(msg: Any, timestamp_ns: int) -> None:
@@ -138,13 +144,16 @@ def _timestamp(msg: Any, timestamp_ns: int) -> None:
 
 def image_to_raw(image: np.ndarray, *, timestamp_ns: int, frame_id: str = "camera",
                  encoding: str | None = None) -> RawImage:
-    """A foxglove.RawImage from an (H, W) uint8 or uint16 array (uint16 stored little-endian).
+    """A foxglove.RawImage from an (H, W) uint8 or uint16 array, or a float32 one with ``encoding``
+    ``32FC1`` (stored little-endian).
 
-    ``encoding`` defaults to ``mono8`` / ``mono16``; pass ``16UC1`` for depth.
+    ``encoding`` defaults to ``mono8`` / ``mono16``; pass ``16UC1`` for depth, ``32FC1`` for the
+    error probability.
     """
     image = np.asarray(image)
-    if image.ndim != 2 or image.dtype not in _RAW_ENCODING:
-        raise ValueError(f"expected an (H, W) uint8 or uint16 image, got shape {image.shape} dtype {image.dtype}")
+    if image.ndim != 2 or not (image.dtype in _RAW_ENCODING or (image.dtype == np.float32 and encoding == "32FC1")):
+        raise ValueError(f"expected an (H, W) uint8 or uint16 image (float32 with encoding 32FC1), got shape "
+                         f"{image.shape} dtype {image.dtype}")
     if encoding is None:
         encoding = _RAW_ENCODING[image.dtype]
     if _DECODE.get(encoding, None) is None or _DECODE[encoding].itemsize != image.dtype.itemsize:
@@ -157,7 +166,8 @@ def image_to_raw(image: np.ndarray, *, timestamp_ns: int, frame_id: str = "camer
 
 
 def raw_to_image(msg: RawImage) -> np.ndarray:
-    """The (H, W) array of a foxglove.RawImage (mono8 / 8UC1 -> uint8, mono16 / 16UC1 -> uint16)."""
+    """The (H, W) array of a foxglove.RawImage (mono8 / 8UC1 -> uint8, mono16 / 16UC1 -> uint16,
+    32FC1 -> float32)."""
     dtype = _DECODE.get(msg.encoding)
     if dtype is None:
         raise ValueError(f"expected a RawImage encoding in {sorted(_DECODE)}, got {msg.encoding!r}")

@@ -111,6 +111,7 @@ class RecordedOutput:
     stack: int
     sequence: int
     info: dict[str, Any] = field(default_factory=dict)
+    error: np.ndarray | None = None  # (H, W) float32 P(wrong), NaN = no estimate; None if not recorded
 
 
 @dataclass
@@ -145,14 +146,30 @@ def _reason(exc: BaseException) -> str:
     return describe_error(exc)
 
 
+#: The decoder settings of a recording made before profiles had ``decoder.validity`` (before the
+#: error-probability rule existed): what its service decoded with, for the keys it does not store.
+PRE_VALIDITY_DECODER = {"validity": "confidence", "levels": "calibration"}
+
+
+def recorded_profile_dict(data: Any) -> Any:
+    """A recorded profile's dict as it decodes: every recording stores every key of its time
+    (`edge.profiles.profile_to_dict`), so one whose ``decoder`` table has no ``validity`` predates
+    the error-probability rule and decoded with `PRE_VALIDITY_DECODER` (filled in where absent;
+    keys added since keep their defaults, which are what it used).  Other dicts come back as given."""
+    if isinstance(data, dict) and isinstance(data.get("decoder"), dict) and "validity" not in data["decoder"]:
+        data = {**data, "decoder": {**PRE_VALIDITY_DECODER, **data["decoder"]}}
+    return data
+
+
 class OutputPairs:
-    """Pairs a recording's ``output_info`` / ``depth`` / ``confidence`` messages of one sequence
-    number into a `RecordedOutput` (the writer puts them in that order; ``output_info`` may be
-    missing: the depth message's log time is the timestamp then)."""
+    """Pairs a recording's ``output_info`` / ``depth`` / (optional) ``error`` / ``confidence``
+    messages of one sequence number into a `RecordedOutput` (the writer puts them in that order;
+    ``output_info`` may be missing: the depth message's log time is the timestamp then)."""
 
     def __init__(self) -> None:
         self._info: dict[int, dict[str, Any]] = {}
         self._depth: dict[int, tuple[np.ndarray, int]] = {}
+        self._error: dict[int, np.ndarray] = {}
 
     def take(self, leaf: str, m: Any) -> RecordedOutput | None:
         """Feed one message (``leaf``: the last part of its topic); the output it completes, or None."""
@@ -160,11 +177,14 @@ class OutputPairs:
             self._info[m.sequence] = m.value
         elif leaf == "depth":
             self._depth[m.sequence] = (m.value, m.log_time)
+            self._error.pop(m.sequence, None)
+        elif leaf == "error" and m.sequence in self._depth:
+            self._error[m.sequence] = m.value
         elif leaf == "confidence" and m.sequence in self._depth:
             d, t = self._depth.pop(m.sequence)
             info = self._info.pop(m.sequence, {})
             return RecordedOutput(d, m.value, int(info.get("timestamp_ns", t)), int(info.get("stack", -1)),
-                                  int(m.sequence), info)
+                                  int(m.sequence), info, error=self._error.pop(m.sequence, None))
         return None
 
 
@@ -225,7 +245,8 @@ class RecordingReader:
             raise RecordingError(f"{self.path}: recorded profile fails its sha256 check "
                                  f"(the profile metadata is corrupt); cannot trust this recording")
         try:
-            return profile_from_dict(json.loads(meta["json"]), source=f"{self.path} (recorded profile)")
+            return profile_from_dict(recorded_profile_dict(json.loads(meta["json"])),
+                                     source=f"{self.path} (recorded profile)")
         except (ValueError, ProfileError) as exc:
             raise RecordingError(f"{self.path}: recorded profile is invalid: {exc}") from None
 
@@ -352,7 +373,7 @@ class RecordingReader:
                 yield item
 
     def outputs(self) -> Iterator[RecordedOutput]:
-        """Recorded depth / confidence pairs in file order."""
+        """Recorded outputs (depth, confidence and the error probability where recorded) in file order."""
         for item in self._events():
             if isinstance(item, RecordedOutput):
                 yield item

@@ -188,6 +188,7 @@ class Recorder:
             "raw": ("protobuf", proto["foxglove.RawImage"]),
             "raw_info": ("json", js["edge.FrameInfo"]),
             "depth": ("protobuf", proto["foxglove.RawImage"]),
+            "error": ("protobuf", proto["foxglove.RawImage"]),
             "confidence": ("protobuf", proto["foxglove.RawImage"]),
             "output_info": ("json", js["edge.OutputInfo"]),
             "stack": ("json", js["edge.StackInfo"]),
@@ -303,17 +304,25 @@ class Recorder:
 
     def write_depth(self, depth_mm: np.ndarray, confidence: np.ndarray, *, timestamp_ns: int,
                     stack: int, sequence: int, points: np.ndarray | None = None, geometry: Any = None,
-                    **extra: Any) -> None:
+                    error: np.ndarray | None = None, **extra: Any) -> None:
         """Record one output: depth (H, W) uint16 mm (0 = invalid) and confidence (H, W) uint8, the
         camera calibration with the same timestamp and, if given, its (N, 3) float32 points
-        (metres, optical frame; `edge.runtime.depth.depth_to_points`).  ``geometry``: the geometry
-        the depth was computed with (default: the profile's), for the calibration message."""
+        (metres, optical frame; `edge.runtime.depth.depth_to_points`) and its (H, W) float32
+        error probability (``32FC1`` on ``/<device>/error``, NaN = no estimate;
+        `edge.runtime.depth.error_image`).  ``geometry``: the geometry the depth was computed with
+        (default: the profile's), for the calibration message."""
         depth_mm, confidence = np.asarray(depth_mm), np.asarray(confidence)
         if depth_mm.dtype != np.uint16 or confidence.dtype != np.uint8 or depth_mm.shape != confidence.shape:
             raise ValueError("expected depth uint16 (H, W) and confidence uint8 of the same shape, got "
                              f"{depth_mm.dtype} {depth_mm.shape} and {confidence.dtype} {confidence.shape}")
+        if error is not None:
+            error = np.asarray(error)
+            if error.dtype != np.float32 or error.shape != depth_mm.shape:
+                raise ValueError(f"expected error float32 {depth_mm.shape}, got {error.dtype} {error.shape}")
         d = image_to_raw(depth_mm, timestamp_ns=timestamp_ns, encoding="16UC1",
                          frame_id=self.frame_id).SerializeToString()
+        e = None if error is None else image_to_raw(error, timestamp_ns=timestamp_ns, encoding="32FC1",
+                                                     frame_id=self.frame_id).SerializeToString()
         c = image_to_raw(confidence, timestamp_ns=timestamp_ns, encoding="mono8",
                          frame_id=self.frame_id).SerializeToString()
         calib = self._calibration(timestamp_ns, geometry)
@@ -325,6 +334,8 @@ class Recorder:
             self._check_open()
             self._add("output_info", info, timestamp_ns, sequence)
             self._add("depth", d, timestamp_ns, sequence)
+            if e is not None:  # before confidence: the reader completes an output on its confidence
+                self._add("error", e, timestamp_ns, sequence)
             self._add("confidence", c, timestamp_ns, sequence)
             self._add("calibration", calib, timestamp_ns)
             if cloud is not None:

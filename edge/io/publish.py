@@ -1,4 +1,5 @@
-"""Zenoh sink of the service: depth, confidence and status through `edge.io.zenoh.DepthPublisher`.
+"""Zenoh sink of the service: depth, error probability (where the decoder estimates it), confidence
+and status through `edge.io.zenoh.DepthPublisher`.
 
 Config updates arriving on ``sl/<device>/config`` go to `Service.update_config` (validated; only
 the live tables may change; on any error the reply is ``config update rejected: <reason>`` and the
@@ -31,7 +32,7 @@ class ZenohSink:
 
     def on_result(self, result: DepthResult) -> None:
         self.publisher.publish_depth(result.depth_mm, result.confidence, timestamp_ns=result.timestamp_ns,
-                                     sequence=self.sequence, stack=result.stack)
+                                     sequence=self.sequence, stack=result.stack, error=result.error)
         if self.profile.points.publish:
             from edge.runtime.points import result_points
 

@@ -234,7 +234,8 @@ class RecordingThread:
     def on_result(self, result: DepthResult) -> None:
         if not self.outputs:
             return
-        if not self._enqueue("result", result, result.depth_mm.nbytes + result.confidence.nbytes):
+        nbytes = result.depth_mm.nbytes + result.confidence.nbytes + (0 if result.error is None else result.error.nbytes)
+        if not self._enqueue("result", result, nbytes):
             self.outputs_lost += 1
 
     def on_config_change(self, change: dict[str, Any]) -> None:
@@ -282,7 +283,7 @@ class RecordingThread:
             rec.write_depth(r.depth_mm, r.confidence, timestamp_ns=r.timestamp_ns, stack=r.stack,
                             sequence=r.sequence, edc_rounds=r.edc_rounds,
                             valid_fraction=round(r.valid_fraction, 6), points=pts,
-                            geometry=r.geometry)
+                            geometry=r.geometry, error=r.error)
             rec.write_stack(stack_info(r), timestamp_ns=r.timestamp_ns)
             self.outputs_written += 1
             self._per_file[rec.path][1] += 1

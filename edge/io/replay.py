@@ -129,6 +129,16 @@ def _compare(report: ReplayReport, stack_id: int, result: DepthResult, out: Any,
         problems.append(_describe_diff("depth", result.depth_mm, out.depth_mm))
     if not np.array_equal(result.confidence, out.confidence):
         problems.append(_describe_diff("confidence", result.confidence, out.confidence))
+    recorded_error = getattr(out, "error", None)
+    if recorded_error is not None or result.error is not None:  # bit for bit, NaN included
+        if recorded_error is None or result.error is None:
+            problems.append(f"error probability: {'recorded' if result.error is None else 'computed'} but not "
+                            f"{'computed' if result.error is None else 'recorded'}")
+        elif (result.error.shape != recorded_error.shape
+              or result.error.astype("<f4").tobytes() != recorded_error.astype("<f4").tobytes()):
+            problems.append(_describe_diff("error", result.error.view(np.uint32), recorded_error.view(np.uint32))
+                            if result.error.shape == recorded_error.shape else
+                            f"error shape {result.error.shape} != recorded {recorded_error.shape}")
     if problems:
         report.mismatches.append(f"stack {stack_id}: " + "; ".join(problems))
     else:

@@ -5,6 +5,11 @@ Keys (``<prefix>/<device>`` from the profile's ``[zenoh]`` table, e.g. ``sl/sim-
 ``sl/<device>/depth``       payload: H*W uint16 little-endian millimetres, row-major, 0 = invalid
                             (ROS REP 118 16UC1); encoding ``application/octet-stream;16UC1``.
 ``sl/<device>/confidence``  payload: H*W uint8, higher = more confident; ``...;mono8``.
+``sl/<device>/error``       payload: H*W float32 little-endian, the decoder's estimated probability
+                            that the pixel's column (so its depth) is wrong, NaN where there is no
+                            depth or no estimate; ``...;32FC1``.  Published with the depth maps
+                            decoded under the error-probability rule (the default for column
+                            codes), after depth and before confidence; absent otherwise.
 ``sl/<device>/status``      JSON object once per ``status_period_s``: whatever the runtime passes
                             (fps, latency_ms, stacks_dropped, edc_rounds, decoder, errors, ...)
                             plus ``device``, ``time_ns`` and ``zenoh`` (router links: reconnects,
@@ -29,8 +34,9 @@ Keys (``<prefix>/<device>`` from the profile's ``[zenoh]`` table, e.g. ``sl/sim-
                             "frame_id", "timestamp_ns", "sequence", "stack", "published_ns"}``
                             (`decode_points`).
 
-Header (the zenoh *attachment* of every depth and confidence sample): UTF-8 JSON object
-``{"v": 1, "width": W, "height": H, "encoding": "16UC1" | "mono8", "units": "mm" | "1/255",
+Header (the zenoh *attachment* of every depth, error and confidence sample): UTF-8 JSON object
+``{"v": 1, "width": W, "height": H, "encoding": "16UC1" | "32FC1" | "mono8", "units": "mm" |
+"probability" | "1/255", "error": true (depth samples followed by an error image only),
 "timestamp_ns": <time of the stack's last camera frame>, "sequence": <depth-map counter>,
 "stack": <stack id>, "published_ns": <wall clock at put>}``. Latency at a subscriber is
 ``time.time_ns() - timestamp_ns`` (timestamps are wall-clock ns, same host or synced clocks).
@@ -88,7 +94,9 @@ MAX_CONFIG_BYTES = 64 * 1024
 MAX_REASON_CHARS = 300
 _DEPTH_ENCODING = zenoh.Encoding.APPLICATION_OCTET_STREAM.with_schema("16UC1")
 _CONF_ENCODING = zenoh.Encoding.APPLICATION_OCTET_STREAM.with_schema("mono8")
-_DTYPES = {"16UC1": np.dtype("<u2"), "mono8": np.dtype(np.uint8)}
+_ERROR_ENCODING = zenoh.Encoding.APPLICATION_OCTET_STREAM.with_schema("32FC1")
+_DTYPES = {"16UC1": np.dtype("<u2"), "mono8": np.dtype(np.uint8), "32FC1": np.dtype("<f4")}
+_UNITS = {"16UC1": "mm", "mono8": "1/255", "32FC1": "probability"}
 
 
 class _RuntimeRejected(Exception):
@@ -145,13 +153,16 @@ def open_session(settings: ZenohSettings) -> zenoh.Session:
 
 
 def encode_header(*, width: int, height: int, encoding: str, timestamp_ns: int, sequence: int,
-                  stack: int = -1) -> bytes:
-    """The JSON attachment of a depth / confidence sample (see the module docstring)."""
-    units = "mm" if encoding == "16UC1" else "1/255"
-    return json.dumps({"v": HEADER_VERSION, "width": int(width), "height": int(height),
-                       "encoding": encoding, "units": units, "timestamp_ns": int(timestamp_ns),
-                       "sequence": int(sequence), "stack": int(stack),
-                       "published_ns": time.time_ns()}).encode()
+                  stack: int = -1, error: bool = False) -> bytes:
+    """The JSON attachment of a depth / error / confidence sample (see the module docstring);
+    ``error``: the depth sample's ``"error": true`` (an error image with its sequence follows)."""
+    units = _UNITS.get(encoding, "1/255")
+    head = {"v": HEADER_VERSION, "width": int(width), "height": int(height), "encoding": encoding, "units": units,
+            "timestamp_ns": int(timestamp_ns), "sequence": int(sequence), "stack": int(stack),
+            "published_ns": time.time_ns()}
+    if error:
+        head["error"] = True
+    return json.dumps(head).encode()
 
 
 def _json_attachment(attachment: bytes | None, what: str) -> Any:
@@ -178,7 +189,8 @@ def decode_header(attachment: bytes | None) -> dict[str, Any]:
 
 
 def decode_image(payload: bytes, header: Mapping[str, Any]) -> np.ndarray:
-    """(H, W) uint16 depth (mm) or uint8 confidence from a sample payload and its header."""
+    """(H, W) uint16 depth (mm), float32 error probability or uint8 confidence from a sample
+    payload and its header."""
     dtype = _DTYPES[header["encoding"]]
     h, w = int(header["height"]), int(header["width"])
     if len(payload) != h * w * dtype.itemsize:
@@ -240,13 +252,15 @@ class DepthPublisher:
         self._lock = threading.Lock()
         self._closed = False
         z = profile.zenoh
-        self.keys = {leaf: z.key(leaf) for leaf in ("depth", "confidence", "status", "config", "alive", "points")}
+        self.keys = {leaf: z.key(leaf) for leaf in ("depth", "error", "confidence", "status", "config", "alive",
+                                                    "points")}
         self._own_session = session is None
         self.session = session if session is not None else open_session(z)
         try:
             # Not express: with express=True and the default DROP congestion control, zenoh 1.10
             # dropped back-to-back samples on loopback in our tests; batching keeps them.
             self._depth = self.session.declare_publisher(self.keys["depth"], encoding=_DEPTH_ENCODING)
+            self._error = self.session.declare_publisher(self.keys["error"], encoding=_ERROR_ENCODING)
             self._confidence = self.session.declare_publisher(self.keys["confidence"], encoding=_CONF_ENCODING)
             self._status = self.session.declare_publisher(self.keys["status"],
                                                           encoding=zenoh.Encoding.APPLICATION_JSON)
@@ -266,16 +280,25 @@ class DepthPublisher:
         return self._profile
 
     def publish_depth(self, depth_mm: np.ndarray, confidence: np.ndarray | None, *, timestamp_ns: int,
-                      sequence: int, stack: int = -1) -> None:
-        """Publish one depth map (H, W) uint16 mm and, if given, its (H, W) uint8 confidence."""
+                      sequence: int, stack: int = -1, error: np.ndarray | None = None) -> None:
+        """Publish one depth map (H, W) uint16 mm and, if given, its (H, W) float32 error
+        probability (NaN = no estimate) and its (H, W) uint8 confidence, in that order."""
         depth_mm = np.asarray(depth_mm)
         if depth_mm.ndim != 2 or depth_mm.dtype != np.uint16:
             raise ValueError(f"expected depth as (H, W) uint16 mm, got {depth_mm.dtype} {depth_mm.shape}")
         h, w = depth_mm.shape
+        if error is not None:
+            error = np.asarray(error)
+            if error.shape != depth_mm.shape or error.dtype != np.float32:
+                raise ValueError(f"expected error as {depth_mm.shape} float32, got {error.dtype} {error.shape}")
         head = encode_header(width=w, height=h, encoding="16UC1", timestamp_ns=timestamp_ns,
-                             sequence=sequence, stack=stack)
+                             sequence=sequence, stack=stack, error=error is not None)
         self._depth.put(np.ascontiguousarray(depth_mm, dtype="<u2").tobytes(), attachment=head)
         self.links.count_publish()
+        if error is not None:
+            head = encode_header(width=w, height=h, encoding="32FC1", timestamp_ns=timestamp_ns,
+                                 sequence=sequence, stack=stack)
+            self._error.put(np.ascontiguousarray(error, dtype="<f4").tobytes(), attachment=head)
         if confidence is not None:
             confidence = np.asarray(confidence)
             if confidence.shape != depth_mm.shape or confidence.dtype != np.uint8:
@@ -368,7 +391,8 @@ class DepthPublisher:
             return
         self._closed = True
         self.links.close()
-        for entity in (self._token, self._queryable, self._points, self._status, self._confidence, self._depth):
+        for entity in (self._token, self._queryable, self._points, self._status, self._confidence, self._error,
+                       self._depth):
             try:
                 entity.undeclare()
             except Exception:
@@ -392,6 +416,8 @@ class DepthSample:
     confidence: np.ndarray | None        # (H, W) uint8 or None if it did not arrive in time
     header: dict[str, Any]               # the depth sample's header
     received_ns: int                     # wall clock when the depth sample arrived
+    error: np.ndarray | None = None      # (H, W) float32 P(wrong), NaN = no estimate; None if the
+                                         # device publishes none or it did not arrive in time
 
     @property
     def latency_ms(self) -> float:
@@ -450,6 +476,7 @@ class DepthSubscriber:
         self.session = session if session is not None else zenoh.open(make_config(connect=connect))
         self._samples: queue.Queue[tuple[np.ndarray, dict[str, Any], int]] = queue.Queue(maxsize=max_queue)
         self._confidence: dict[int, np.ndarray] = {}
+        self._error: dict[int, np.ndarray] = {}
         self._cond = threading.Condition()
         self.dropped = 0
         self.errors: list[str] = []
@@ -460,6 +487,7 @@ class DepthSubscriber:
         self._subs = [
             self.session.declare_subscriber(f"{base}/depth", self._on_depth),
             self.session.declare_subscriber(f"{base}/confidence", self._on_confidence),
+            self.session.declare_subscriber(f"{base}/error", self._on_error),
             self.session.declare_subscriber(f"{base}/status", self._on_status),
         ]
         if points:
@@ -497,6 +525,19 @@ class DepthSubscriber:
                 self._confidence.pop(next(iter(self._confidence)))
             self._cond.notify_all()
 
+    def _on_error(self, sample: zenoh.Sample) -> None:
+        try:
+            header = decode_header(sample.attachment.to_bytes() if sample.attachment is not None else None)
+            image = decode_image(sample.payload.to_bytes(), header)
+        except ValueError as exc:
+            self.errors.append(f"error: {exc}")
+            return
+        with self._cond:
+            self._error[int(header["sequence"])] = image
+            while len(self._error) > 32:
+                self._error.pop(next(iter(self._error)))
+            self._cond.notify_all()
+
     def _on_points(self, sample: zenoh.Sample) -> None:
         try:
             xyz, header = decode_points(sample.payload.to_bytes(),
@@ -514,16 +555,22 @@ class DepthSubscriber:
 
     def receive(self, timeout: float = 1.0, *, confidence_wait: float = 0.2) -> DepthSample | None:
         """The next depth sample (None after ``timeout`` s); waits up to ``confidence_wait`` s for
-        the confidence map with the same sequence."""
+        the confidence map with the same sequence, and for its error image when the depth header
+        says one was published (``"error": true``)."""
         try:
             depth, header, received = self._samples.get(timeout=timeout)
         except queue.Empty:
             return None
         seq = int(header["sequence"])
         with self._cond:
-            self._cond.wait_for(lambda: seq in self._confidence, timeout=confidence_wait)
+            want_error = bool(header.get("error"))
+            self._cond.wait_for(lambda: seq in self._confidence and (not want_error or seq in self._error),
+                                timeout=confidence_wait)
             conf = self._confidence.pop(seq, None)
-        return DepthSample(depth, conf, header, received)
+            error = self._error.pop(seq, None)
+            for old in [s for s in self._error if s < seq]:
+                del self._error[old]
+        return DepthSample(depth, conf, header, received, error)
 
     def get_config(self, timeout: float = 2.0) -> dict[str, Any]:
         return get_config(self.session, self.device, prefix=self.prefix, timeout=timeout)

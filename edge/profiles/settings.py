@@ -39,11 +39,20 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     source = ""                           # light-source code bit string ("" = none), e.g. "1101";
                                           # a stack (frames x pixels) must fit STACK_PIXEL_BUDGET
 
-    [decoder]
+    [decoder]                             # every key but the band defaults to the library's
+                                          # edge.decode.DEFAULT_SETTINGS (edge.decode.settings)
     method = "soft"                       # columns: edge.decode.METHODS (soft | hard | list | median |
                                           # list+median); dots: block-match; line: curtain
-    min_contrast = 0.02                   # white - black below this (0..1 scale, < 1) -> invalid pixel
-    min_confidence = 0.0                  # confidence below this (0..1, < 1) -> invalid pixel
+    validity = "auto"                     # auto | error | confidence: "auto" = the error-probability
+                                          # rule for the soft methods without inverse frames
+    max_error = 0.01                      # "error" rule: valid where P(wrong column) < max_error
+    levels = "auto"                       # auto | calibration | refit
+    min_contrast = 0.02                   # "confidence" rule: white - black floor (0..1 scale, < 1);
+                                          # dots / line: matched-filter minimum amplitude
+    min_confidence = 0.3                  # "confidence" rule: (d2 - d1) / d2 floor (0..1, < 1);
+                                          # dots / line: matched-filter correlation threshold
+    metric = "ml"                         # also t_low = 0.05, t_high = 0.3, spatial_check = true,
+    backend = "cpu"                       # (the "confidence" rule's spatial check); cpu | cuda | auto
     min_disparity = -176                  # disparity band, pixels (architecture.md convention)
     max_disparity = -64
 
@@ -115,6 +124,7 @@ import typing
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
+from edge.decode.settings import DEFAULT_SETTINGS as _LIB
 from edge.device import PIPELINES
 
 __all__ = [
@@ -239,23 +249,26 @@ class CodeSettings:
 
 @dataclass(frozen=True)
 class DecoderSettings:
+    """The ``[decoder]`` table.  Every key but the disparity band is a field of
+    `edge.decode.settings.DecodeSettings` and defaults to the library's `DEFAULT_SETTINGS` (one
+    source of defaults: a profile that does not set a key decodes as `edge.decode.decode` does);
+    `edge.decode.settings.from_profile` is the one mapping and checks the values.  The dots / line
+    pipelines read ``min_contrast`` / ``min_confidence`` as their matched filter's amplitude and
+    correlation thresholds (`edge.runtime.dots`, `edge.runtime.curtain`): their profiles set both."""
+
     min_disparity: int = _f(lo=-65536, hi=65536)
     max_disparity: int = _f(lo=-65536, hi=65536)
-    method: str = _f("soft")  # checked against the pipeline kind in _check_profile
-    min_contrast: float = _f(0.0, lo=0.0, hi=1.0, hi_open=True)
-    min_confidence: float = _f(0.0, lo=0.0, hi=1.0, hi_open=True)
-    # The rest of `edge.decode.settings.DecodeSettings` (checked by it in _check_pipeline; the
-    # defaults are the library's), so a profile can express every decoder configuration.
-    metric: str = _f("ml")
-    levels: str = _f("calibration")
-    t_low: float = _f(0.05, lo=0.0, hi=1.0)
-    t_high: float = _f(0.3, lo=0.0, hi=1.0)
-    spatial_check: bool = _f(True)
-    # The service stays on the contrast / confidence rule until its recordings and the room
-    # simulation are re-made under the error-probability rule (the library's default, "auto").
-    validity: str = _f("confidence")
-    max_error: float = _f(0.01, lo=0.0, hi=1.0, lo_open=True, hi_open=True)
-    backend: str = _f("cpu")
+    method: str = _f(_LIB.method)  # checked against the pipeline kind in _check_profile
+    min_contrast: float = _f(_LIB.min_contrast, lo=0.0, hi=1.0, hi_open=True)
+    min_confidence: float = _f(_LIB.min_confidence, lo=0.0, hi=1.0, hi_open=True)
+    metric: str = _f(_LIB.metric)
+    levels: str = _f(_LIB.levels)
+    t_low: float = _f(_LIB.t_low, lo=0.0, hi=1.0)
+    t_high: float = _f(_LIB.t_high, lo=0.0, hi=1.0)
+    spatial_check: bool = _f(_LIB.spatial_check)
+    validity: str = _f(_LIB.validity)
+    max_error: float = _f(_LIB.max_error, lo=0.0, hi=1.0, lo_open=True, hi_open=True)
+    backend: str = _f(_LIB.backend)
 
 
 @dataclass(frozen=True)

@@ -87,6 +87,14 @@ def confidence_to_u8(confidence: np.ndarray, valid: np.ndarray | None = None) ->
     return out
 
 
+def error_image(error: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """(H, W) float32 P(wrong column) in [0, 1] where `valid` (the published depth), NaN elsewhere
+    (no depth, or no estimate for the published column): the ``32FC1`` error image of the service
+    (REP 118's convention for float images, NaN = invalid)."""
+    e = np.clip(np.asarray(error, dtype=np.float32), np.float32(0.0), np.float32(1.0))
+    return np.where(np.asarray(valid, dtype=bool), e, np.float32(np.nan)).astype(np.float32)
+
+
 def camera_matrix(geometry) -> np.ndarray:
     """(3, 3) float64 intrinsics K of the rectified camera in a profile / sim geometry:
     ``[[f, 0, cx_camera], [0, f, cy], [0, 0, 1]]`` (pixels, square pixels, no distortion)."""

@@ -5,12 +5,16 @@
 1. matched filter (when ``profile.code.source`` is set): the L slots of every projector frame
    are de-spread into one image (`edge.source.despread`);
 2. split into the n code frames, the white and the black calibration frame;
-3. decoder (`edge.decode.decode`, the profile's method and disparity band), then the profile's
-   validity thresholds (``decoder.min_contrast`` on (white - black), ``decoder.min_confidence``).
-   With ``decoder.backend`` "cuda" the frames were uploaded while they were captured (the
-   capture hook `on_frame`, see `DepthPipeline.__init__`) and the decode reads that staged set;
-   a stack that was not staged is uploaded whole; either way only column, confidence and the
-   valid mask come back to the host, with the same values;
+3. decoder (`edge.decode.decode` with the profile's `DecodeSettings`, `from_profile`, and
+   disparity band) and its valid mask: by default (``decoder.validity = "auto"``, a soft method)
+   the error-probability rule, valid where the estimated P(wrong column) < ``decoder.max_error``,
+   published as the result's ``error`` image; else the contrast / confidence thresholds
+   (``decoder.min_contrast`` on (white - black), ``decoder.min_confidence``).  With
+   ``decoder.backend`` "cuda" under the "confidence" rule the frames were uploaded while they
+   were captured (the capture hook `on_frame`, see `DepthPipeline.__init__`) and the decode
+   reads that staged set; a stack that was not staged is uploaded whole; either way only
+   column, confidence and the valid mask come back to the host, with the same values (under
+   the "error" rule the device runs the candidate search and the host the posterior);
 4. EDC (when ``edc.rounds`` > 0): `edge.decode.check` error map and the adaptive loop
    (`edge.edc`), which asks ``masked_capture`` for the next masked frames;
 5. column -> disparity -> depth (`edge.runtime.depth.column_to_depth_mm`, profile geometry).
@@ -32,7 +36,7 @@ from edge.device import DeviceModel
 
 from ..sensors.base import Frame
 from .assembly import Stack
-from .depth import column_to_depth_mm, confidence_to_u8
+from .depth import column_to_depth_mm, confidence_to_u8, error_image
 from .result import DepthResult, MaskedCaptureFn
 
 class DepthPipeline:
@@ -83,7 +87,12 @@ class DepthPipeline:
         #: staged frames (`continue_from`).
         self.on_frame = None
         self.stager = None
-        if self.settings.backend != "cpu" and get_backend(self.settings.backend).__name__.endswith(".cuda"):
+        #: the validity rule of the service's stacks (code frames, white, black: no inverse frames)
+        self.rule = self.settings.rule(False)
+        # the device's whole decode (and so the staged one) is the "confidence" rule's; under the
+        # "error" rule `decode` runs the candidate search on the device and the posterior here
+        if (self.rule == "confidence" and self.settings.backend != "cpu"
+                and get_backend(self.settings.backend).__name__.endswith(".cuda")):
             import functools
 
             from edge.decode.backends.cuda.pipeline import HOST_OUTPUTS
@@ -224,6 +233,7 @@ class DepthPipeline:
         valid = self.validity(decoded)
         column = np.where(valid, np.asarray(decoded.column, dtype=np.int32), np.int32(-1))
         confidence = np.asarray(decoded.confidence, dtype=np.float32)
+        soft_column = column
         rounds, extra, round_ms, capture_ms = 0, (), (), ()
         if self.profile.edc.rounds > 0:
             images = self.stacked(stack.frames) if images is None else images
@@ -232,12 +242,15 @@ class DepthPipeline:
             round_ms, capture_ms = edc.round_ms, edc.capture_ms
             valid = column >= 0
         depth = column_to_depth_mm(column, self.geometry, stripe=self.stripe)
+        error = None
+        if getattr(decoded, "error", None) is not None:  # the decoder's P(wrong) of its own columns only
+            error = error_image(decoded.error, (depth > 0) & (column == soft_column))
         return DepthResult(
             stack=stack.stack, sequence=stack.first_sequence, timestamp_ns=stack.timestamp_ns,
             received_ns=stack.received_ns, depth_mm=depth, confidence=confidence_to_u8(confidence, depth > 0),
             column=column, decode_s=time.perf_counter() - t0, edc_rounds=rounds, extra_frames=tuple(extra),
             edc_round_ms=tuple(round_ms), edc_capture_ms=tuple(capture_ms), stack_frames=len(stack.frames),
-            stats=stats,
+            stats=stats, error=error,
         )
 
     def adaptive(self, stack, images, column, confidence, masked_capture):

@@ -30,7 +30,10 @@ class DepthResult:
     per-stack counters that the service sums into its status (e.g. ``events_out_of_order``);
     edc_round_ms: decode milliseconds of each EDC round (round 1 = the check of the stack);
     edc_capture_ms: milliseconds waited for each masked round's frames; stack_frames: camera
-    frames of the stack itself.
+    frames of the stack itself.  error: (H, W) float32 the decoder's estimated probability that
+    the published column is wrong (`edge.decode.Decoded.error`), NaN where there is no depth or no
+    estimate (`edge.runtime.depth.error_image`); None when the pipeline estimates none (the
+    "confidence" validity rule, the dots / line pipelines).
     """
 
     stack: int
@@ -48,6 +51,7 @@ class DepthResult:
     edc_round_ms: tuple[float, ...] = ()
     edc_capture_ms: tuple[float, ...] = ()
     stack_frames: int = 0
+    error: np.ndarray | None = None
 
     @property
     def frames_per_depth_map(self) -> int:
