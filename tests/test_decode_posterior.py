@@ -27,15 +27,24 @@ GRAY, ECC = get_code("gray-10"), get_code("ecc-22-10")
 # -------------------------------------------------------------------------- brute-force references
 
 def _split_reference(samples: np.ndarray) -> tuple[float, float]:
-    s = np.sort(samples.astype(np.float64))
-    m = s.size
-    best, out = -1.0, (s[-1], s[0])
-    for k in range(1, m):
-        lo, hi = s[:k].mean(), s[k:].mean()
-        score = k * (m - k) * (hi - lo) ** 2
-        if score > best:
-            best, out = score, (hi, lo)
-    return out
+    """Lloyd's two-means as `split_levels` states it (samples: the n frames, then white, black)."""
+    s = samples.astype(np.float64)
+    top, bottom = s.max(), s.min()
+    t = 0.5 * (s[-2] + s[-1]) if s[-2] > s[-1] else 0.5 * (top + bottom)
+    hi, lo, last = top, bottom, -1
+    for _ in range(4):
+        up = s > t
+        if up.all() or not up.any():
+            t = 0.5 * (top + bottom)
+            up = s > t
+            if up.all() or not up.any():
+                break
+        hi, lo = s[up].mean(), s[~up].mean()
+        t = 0.5 * (hi + lo)
+        if up.sum() == last:
+            break
+        last = up.sum()
+    return hi, lo
 
 
 def test_split_levels_matches_brute_force():

@@ -211,7 +211,7 @@ def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, nc
     noise = fit_noise(stack.frames, stack.white, stack.black, float(scale), code, best,
                       prior=(s.sigma_r, s.sigma_s), inverse=stack.inverse)
     post = posterior(stack.frames, stack.white, stack.black, float(scale), code, found.candidates, noise,
-                     choices=band_choices(ncols, band, stripe), inverse=stack.inverse)
+                     choices=band_choices(ncols, band, stripe), inverse=stack.inverse, distances=found.distances)
     column0 = np.ascontiguousarray(post.candidates[..., 0])
     ok = s.max_error
     if s.method in ("soft", "hard"):

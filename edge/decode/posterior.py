@@ -1,18 +1,19 @@
-"""Self-calibration and the error probability of a decoded column (captures without inverse frames).
+"""Self-calibration and the error probability of a decoded column (the "error" validity rule).
 
 Three pure steps over numpy arrays (numba kernels, one pass over the pixels each):
 
-1. `split_levels` (before the search): each pixel's on / off levels from its own n + 2 samples
-   (the n code frames, white, black; all at the same per-frame exposure).  The samples are
-   sorted and split in two where the between-class variance ``k (m - k) (mean_hi - mean_lo)**2``
-   is largest (Otsu's rule on m = n + 2 values); white is one of the "on" and black one of the
-   "off" samples by construction whenever they are the extremes.  Each level is the mean of
-   about m / 2 samples instead of one calibration frame at exposure T / n, so the search is not
-   thrown off by the calibration frames' own noise, and there is no first full decode.  The
-   residuals of the samples about their split level give a first noise model (the binned fit of
-   step 2), which the search uses, so its costs do not depend on the settings' sigmas or on the
-   frames' stated bit depth.  The
-   all-zero codeword still works: its split puts white alone above (and vice versa).
+1. `split_levels` (before the search): each pixel's on / off levels from its own m = n + 2
+   samples (the n code frames, white, black; all at the same per-frame exposure; with inverse
+   frames m = 2n + 2).  Two-means clustering by Lloyd's iterations: the threshold starts at
+   ``(white + black) / 2`` (at the samples' mid-range where white <= black, or where one side
+   would be empty), the levels are the means of the samples above / at-or-below it, the
+   threshold moves to their midpoint, at most `SPLIT_ITERATIONS` times or until the split stops
+   changing.  Each level is the mean of about m / 2 samples instead of one calibration frame at
+   exposure T / n, so the search is not thrown off by the calibration frames' own noise, and
+   there is no first full decode; the all-zero codeword still works (white alone is "on").  The
+   residuals of the samples about their level give a first noise model (the binned fit of step
+   2), which the search uses, so its costs depend neither on the settings' sigmas nor on the
+   frames' stated bit depth.
 
 2. `fit_noise` (after the search): per pixel, the least-squares levels of the best candidate c1,
    ``r_i = b + c * x_i(c1)`` over the m samples (x = symbol / (q - 1), white x = 1, black x = 0),
@@ -62,6 +63,12 @@ from ..codes import Code
 MIN_CONTRAST = 1e-6
 #: Fewer decoded pixels than this: the noise model is the settings' prior, not a fit.
 MIN_FIT_PIXELS = 500
+#: Competitors the search puts this far (in -2 log-likelihood) behind the best are not rescored:
+#: their posterior odds, about exp(-SKIP_MARGIN / 2), are far below any error target; they keep
+#: their place after the scored candidates with distance inf.
+SKIP_MARGIN = 60.0
+#: Lloyd iterations of `split_levels` at most (it stops earlier once the split is stable).
+SPLIT_ITERATIONS = 4
 #: Pixels the noise fit uses at most (`_steps`: a regular subgrid of larger images).
 FIT_PIXELS = 40000
 #: Quantile bins of the mean level in `fit_noise`.
@@ -87,7 +94,8 @@ class Posterior(NamedTuple):
     distances: (H, W, 3) float32 negative log-likelihoods ``L_k`` (inf where absent);
     error: float32 P(wrong) of candidates[..., 0] (1 where no candidate);
     confidence: float32 ``(d2 - d1) / d2`` of the Mahalanobis parts ``d_k = sum (r - mu)**2 / v``
-        (the paper's ratio on the refitted candidates; 0 where fewer than two);
+        (the paper's ratio on the refitted candidates; its lower bound ``SKIP_MARGIN / (d1 +
+        SKIP_MARGIN)`` where the second was not rescored; 0 where there is no second);
     contrast: float32 on - off level of the best candidate's fit (normalised units).
     noise: the `Noise` used.
     """
@@ -109,34 +117,46 @@ def _split_levels(frames, white, black, scale, out_hi, out_lo, out_s2, out_mu):
         _row_block(frames, white, black, scale, yy, block)
         for xx in range(width):
             buf = block[xx]
-            for i in range(1, m):  # insertion sort: m is small (n + 2 <= 65)
-                v = buf[i]
-                j = i - 1
-                while j >= 0 and buf[j] > v:
-                    buf[j + 1] = buf[j]
-                    j -= 1
-                buf[j + 1] = v
+            # two-means by Lloyd's iterations from the calibration midpoint (SPLIT_ITERATIONS, or
+            # until the split stops changing); from the samples' mid-range where white <= black
+            top = buf[0]
+            bottom = buf[0]
             total = 0.0
             for i in range(m):
-                total += buf[i]
-            best = -1.0
-            hi = buf[m - 1]
-            lo = buf[0]
-            split = 1
-            acc = 0.0
-            for k in range(1, m):
-                acc += buf[k - 1]
-                ml = acc / k
-                mh = (total - acc) / (m - k)
-                score = k * (m - k) * (mh - ml) * (mh - ml)
-                if score > best:
-                    best = score
-                    hi = mh
-                    lo = ml
-                    split = k
+                v = buf[i]
+                total += v
+                top = max(top, v)
+                bottom = min(bottom, v)
+            t = 0.5 * (buf[n] + buf[n + 1]) if buf[n] > buf[n + 1] else 0.5 * (top + bottom)
+            hi = top
+            lo = bottom
+            count_hi = -1
+            for _ in range(SPLIT_ITERATIONS):
+                sh = 0.0
+                kh = 0
+                for i in range(m):
+                    if buf[i] > t:
+                        sh += buf[i]
+                        kh += 1
+                if kh == 0 or kh == m:  # one class: split at the mid-range instead
+                    t = 0.5 * (top + bottom)
+                    sh = 0.0
+                    kh = 0
+                    for i in range(m):
+                        if buf[i] > t:
+                            sh += buf[i]
+                            kh += 1
+                    if kh == 0 or kh == m:
+                        break
+                hi = sh / kh
+                lo = (total - sh) / (m - kh)
+                t = 0.5 * (hi + lo)
+                if kh == count_hi:
+                    break
+                count_hi = kh
             ssr = 0.0
             for i in range(m):
-                e = buf[i] - (lo if i < split else hi)
+                e = buf[i] - (hi if buf[i] > t else lo)
                 ssr += e * e
             out_s2[yy, xx] = ssr / (m - 2)
             out_mu[yy, xx] = total / m
@@ -355,7 +375,7 @@ def _nll(buf, xs, row, n, xtab, a, beta, use_row):
 
 
 @njit(cache=True, parallel=True)
-def _posterior(frames, white, black, scale, xtab, nbits, cand, a, beta, packed, flips, flip_bits, flip_w,
+def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta, packed, flips, flip_bits, flip_w,
                tail_weight, wlo, whi, in_band,
                out_cand, out_dist, out_err, out_gain, out_conf, out_contrast):
     n, height, width = frames.shape
@@ -371,12 +391,18 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, a, beta, packed, 
         mk = np.empty(3, np.float64)
         ck = np.empty(3, np.float64)
         rk = np.empty(3, np.int32)
+        rest = np.empty(3, np.int32)
         for xx in range(width):
             buf = block[xx]
             count = 0
+            unscored = 0
             for k in range(3):
                 row = cand[yy, xx, k]
                 if row < 0:
+                    continue
+                if k > 0 and searched[yy, xx, k] - searched[yy, xx, 0] > SKIP_MARGIN:
+                    rest[unscored] = row  # posterior odds far below any target: not rescored
+                    unscored += 1
                     continue
                 total, maha, c = _nll(buf, xs, row, n, xtab, a, beta, True)
                 # insertion by likelihood (ties keep the search's order)
@@ -396,6 +422,9 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, a, beta, packed, 
                 if k < count:
                     out_cand[yy, xx, k] = rk[k]
                     out_dist[yy, xx, k] = lk[k]
+                elif k < count + unscored:
+                    out_cand[yy, xx, k] = rest[k - count]
+                    out_dist[yy, xx, k] = np.inf
                 else:
                     out_cand[yy, xx, k] = -1
                     out_dist[yy, xx, k] = np.inf
@@ -424,7 +453,12 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, a, beta, packed, 
                 far += tail
                 every += tail
             out_err[yy, xx] = far / (1.0 + every)
-            out_conf[yy, xx] = (mk[1] - mk[0]) / mk[1] if count > 1 and mk[1] > mk[0] else 0.0
+            if count > 1:
+                out_conf[yy, xx] = (mk[1] - mk[0]) / mk[1] if mk[1] > mk[0] else 0.0
+            elif unscored > 0:  # d2 >= d1 + SKIP_MARGIN: the ratio's lower bound
+                out_conf[yy, xx] = SKIP_MARGIN / (mk[0] + SKIP_MARGIN)
+            else:
+                out_conf[yy, xx] = 0.0
             out_contrast[yy, xx] = ck[0]
 
 
@@ -548,13 +582,16 @@ def _flips(code: Code) -> tuple:
 
 
 def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, code: Code,
-              candidates: np.ndarray, noise: Noise, *, choices: int, inverse: np.ndarray | None = None) -> Posterior:
+              candidates: np.ndarray, noise: Noise, *, choices: int, inverse: np.ndarray | None = None,
+              distances: np.ndarray | None = None) -> Posterior:
     """Step 3 of the module docstring.
 
     frames (n, H, W), white / black (H, W), inverse (n, H, W) or None: the raw capture (``scale``
     to normalised units; inverse frames are n more samples, of symbol 1 - x); candidates: (H, W,
     3) int32 rows of the search; noise: `fit_noise`'s model; choices: N, the number of columns a
-    pixel could have decoded to (codebook rows in use, or the rows of the disparity band), >= 1.
+    pixel could have decoded to (codebook rows in use, or the rows of the disparity band), >= 1;
+    distances: (H, W, 3) the search's distances (-2 log-likelihood), or None (every candidate is
+    rescored): candidates more than `SKIP_MARGIN` behind the best are not rescored.
     """
     if choices < 1:
         raise ValueError(f"choices: expected >= 1 candidate columns, got {choices}")
@@ -569,8 +606,10 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     packed, flips, flip_bits, flip_w, tail_weight, wlo, whi = _flips(code)
     has_inv = inverse is not None
     xtab = _xtab(code, has_inv)
+    searched = (np.zeros(cand.shape, np.float32) if distances is None
+                else np.ascontiguousarray(distances, np.float32))
     _posterior(_samples(frames, inverse), white, black, np.float64(scale),
-               xtab, code.n, cand,
+               xtab, code.n, cand, searched,
                float(noise.a), float(noise.beta), packed, flips, flip_bits, flip_w, float(tail_weight), int(wlo), int(whi),
                min(1.0, choices / code.size),
                out_cand, out_dist, competitors, gain, conf, contrast)
