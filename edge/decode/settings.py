@@ -7,7 +7,7 @@ facts (inverse frames, disparity band, columns in use, stripe width, bit depth) 
 
 Fields (units: normalised intensity, 1 = full scale of the frame dtype):
 
-* ``method``: "hard" | "soft" | "list" | "median" | "list+median" (see `edge.decode.decoder`).
+* ``method``: "hard" | "soft" | "list" | "median" | "list+median" | "sgm" (see `edge.decode.decoder`).
 * ``metric``: "ml" (heteroscedastic Gaussian likelihood) | "normalized" (the paper's distance).
 * ``levels``: "auto" (default: where the "error" rule applies, the search uses each pixel's on /
   off levels split from its own n + 2 samples and the rule refits them per candidate,
@@ -43,7 +43,7 @@ from .backends import BACKEND_NAMES
 
 #: The one list of each choice (profiles, the CLI and the service take theirs from here; the
 #: backends from their registry, `edge.decode.backends._MODULES`).
-METHODS = ("hard", "soft", "list", "median", "list+median")
+METHODS = ("hard", "soft", "list", "median", "list+median", "sgm")
 METRIC_NAMES = ("ml", "normalized")
 LEVELS = ("auto", "calibration", "refit")
 VALIDITY = ("auto", "error", "confidence")
