@@ -19,7 +19,8 @@ Fields (units: normalised intensity, 1 = full scale of the frame dtype):
   wrong, `edge.decode.posterior`, is below ``max_error``; the noise model is fitted from the
   capture) | "confidence" (the contrast / confidence thresholds below).
 * ``max_error`` in (0, 1): the error-probability target of the "error" rule (default 0.01: at
-  most about 1 in 100 published columns off by more than one codebook row).
+  most about 1 in 100 published columns off by more than one codebook row); method "sgm" uses
+  it under either rule (`edge.decode.sgm`).
 * ``sigma_r`` > 0, ``sigma_s`` >= 0: read + quantisation sigma and shot-noise coefficient
   (variance = sigma_r**2 + sigma_s**2 * I) of the search; under the "error" rule a prior only
   (the rule fits the noise model from the capture's residuals).

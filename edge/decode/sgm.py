@@ -15,9 +15,13 @@ of lit / not lit and uniform column prior).  From a column, the next pixel lies 
 edge with probability ``p_edge`` (`P_EDGE` = 0.02: one edge in 50 pixels), where it is not lit
 with probability 1/2 or takes any of the N columns; otherwise it is on the same surface: one of
 the three nearest rows (``u <= 1``) with probability ``1 - f_steep`` or one of the two rows at
-``1 < u <= 2`` with probability ``f_steep`` (`F_STEEP` = 0.1), where ``u = |d_p - d_q| /
-stripe`` and ``d = x - c * stripe`` is a candidate's disparity (projector pixels,
-`edge.decode.spatial`'s convention).  From none, the next pixel is lit (any column) with
+``1 < u <= 2`` with probability ``f_steep`` (`F_STEEP` = 0.1), where ``u = |d_p - d_q|`` and
+``d = x s_x + y s_y - c`` is a candidate's disparity in codebook rows.  The steps (s_x, s_y)
+are the column change per camera pixel on a fronto-parallel surface: `edge.decode.spatial`'s
+convention (``d = x - c * stripe`` projector pixels) is ``(1 / stripe, 0)``; `from_posterior` /
+`from_search` measure them on the capture (`surface_steps`: the median column step of
+confidently decoded neighbours), so a camera that samples the projector coarser or finer, or
+is not rectified with it, still sees its surfaces as smooth.  From none, the next pixel is lit (any column) with
 probability ``p_edge / 2``.  Costs are negative log probabilities relative to the nearest-row
 transition ``(1 - p_edge)(1 - f_steep) / 3`` (`penalties`, a `Prior`), previous pixel first:
 
@@ -86,6 +90,8 @@ F_STEEP = 0.1
 BIG = np.float32(1e6)
 #: Largest |U_none| (nats): the odds the float32 error can still resolve are far inside it.
 NONE_CLIP = 80.0
+#: Fewer neighbour pairs than this: `surface_steps` keeps the disparity convention.
+MIN_STEP_VOTES = 200
 #: Odds below exp(-_EXP_CUT) (1e-26) are counted as 0 (far below any error target).
 _EXP_CUT = 60.0
 _E_CLIP = math.exp(-NONE_CLIP)
@@ -243,14 +249,23 @@ def _cols(disp, unary, pr, col_prior, passes, total):
 
 
 @njit(cache=True, parallel=True)
-def _disparities(cand, stripe, out):
-    """out[y, x, k] = x / stripe - cand[y, x, k]: the candidates' disparities in rows."""
+def _disparities(cand, step_x, step_y, out):
+    """out[y, x, k] = x step_x + y step_y - cand[y, x, k]: the candidates' disparities in rows."""
     height, width, k = cand.shape
-    inv = 1.0 / stripe
     for y in prange(height):
         for x in range(width):
             for j in range(k):
-                out[y, x, j] = x * inv - cand[y, x, j]
+                out[y, x, j] = x * step_x + y * step_y - cand[y, x, j]
+
+
+@njit(cache=True)
+def _step_votes(col, ok, out_x, out_y):
+    """Column differences of horizontally / vertically neighbouring `ok` pixels (NaN elsewhere)."""
+    height, width = col.shape
+    for y in range(height):
+        for x in range(width):
+            out_x[y, x] = col[y, x + 1] - col[y, x] if x + 1 < width and ok[y, x] and ok[y, x + 1] else np.nan
+            out_y[y, x] = col[y + 1, x] - col[y, x] if y + 1 < height and ok[y, x] and ok[y + 1, x] else np.nan
 
 
 @njit(cache=True, parallel=True)
@@ -311,7 +326,7 @@ def _decide(cand, dist, total, max_error, out_col, out_valid, out_err, out_none,
             out_col[y, x] = cb if ok else -1
 
 
-def _check(candidates: np.ndarray, unary: np.ndarray, stripe: int, prior: Prior) -> tuple[np.ndarray, np.ndarray]:
+def _check(candidates: np.ndarray, unary: np.ndarray, steps: tuple[float, float], prior: Prior) -> tuple[np.ndarray, np.ndarray]:
     cand = np.asarray(candidates)
     if cand.ndim != 3 or cand.shape[2] < 1:
         raise ValueError(f"candidates: expected an (H, W, K) array, got shape {cand.shape}")
@@ -320,8 +335,8 @@ def _check(candidates: np.ndarray, unary: np.ndarray, stripe: int, prior: Prior)
         raise ValueError(f"candidates: expected a non-empty image, got shape {cand.shape}")
     if np.shape(unary) != (h, w, k + 1):
         raise ValueError(f"unary: expected shape {(h, w, k + 1)} (K candidates + none), got {np.shape(unary)}")
-    if stripe < 1:
-        raise ValueError(f"stripe: expected >= 1, got {stripe}")
+    if len(steps) != 2 or not all(math.isfinite(float(v)) for v in steps):
+        raise ValueError(f"steps: expected two finite column steps (x, y), got {steps!r}")
     if not isinstance(prior, Prior) or not all(math.isfinite(v) for v in prior):
         raise ValueError(f"prior: expected a Prior of finite costs (see penalties), got {prior!r}")
     u = np.ascontiguousarray(unary, np.float32)
@@ -332,21 +347,23 @@ def _check(candidates: np.ndarray, unary: np.ndarray, stripe: int, prior: Prior)
 
 
 def path_costs(candidates: np.ndarray, unary: np.ndarray, *, direction: str, prior: Prior,
-               stripe: int = 1) -> np.ndarray:
+               steps: tuple[float, float] = (1.0, 0.0)) -> np.ndarray:
     """(H, W, K + 1) float32 ``L_r`` of the module docstring along `direction` (a key of
     `DIRECTIONS`).  candidates (H, W, K) int32 rows (-1 absent); unary (H, W, K + 1) costs in
-    nats (inf or >= `BIG`: absent), the none state last."""
+    nats (inf or >= `BIG`: absent), the none state last; steps: the column steps (s_x, s_y) of
+    the disparity ``x s_x + y s_y - c`` (rows; default the convention's ``(1 / stripe, 0)`` for
+    stripe 1; `surface_steps`)."""
     if direction not in DIRECTIONS:
         raise ValueError(f"direction: expected one of {', '.join(DIRECTIONS)}, got {direction!r}")
-    cand, u = _check(candidates, unary, stripe, prior)
+    cand, u = _check(candidates, unary, steps, prior)
     out = np.zeros(u.shape, np.float32)
-    _passes(cand, u, stripe, prior, {direction}, False, out)
+    _passes(cand, u, steps, prior, {direction}, False, out)
     return out.astype(np.float32)
 
 
-def _passes(cand, u, stripe, prior, directions, init, total) -> None:
+def _passes(cand, u, steps, prior, directions, init, total) -> None:
     disp = np.empty(cand.shape, np.float32)
-    _disparities(cand, int(stripe), disp)
+    _disparities(cand, float(steps[0]), float(steps[1]), disp)
     pr = np.array(prior[:5], np.float64)
     rows = int("left-right" in directions) | (int("right-left" in directions) << 1)
     cols = int("top-bottom" in directions) | (int("bottom-top" in directions) << 1)
@@ -356,32 +373,33 @@ def _passes(cand, u, stripe, prior, directions, init, total) -> None:
         _cols(disp, u, pr, float(prior.col_prior), cols, total)
 
 
-def aggregate(candidates: np.ndarray, unary: np.ndarray, *, prior: Prior, stripe: int = 1) -> np.ndarray:
+def aggregate(candidates: np.ndarray, unary: np.ndarray, *, prior: Prior,
+              steps: tuple[float, float] = (1.0, 0.0)) -> np.ndarray:
     """(H, W, K + 1) float32 ``S = sum_r L_r - 3 (U + W)`` over the four `DIRECTIONS`
     (arguments as `path_costs`)."""
-    cand, u = _check(candidates, unary, stripe, prior)
+    cand, u = _check(candidates, unary, steps, prior)
     total = np.empty(u.shape, np.float32)
-    _passes(cand, u, stripe, prior, set(DIRECTIONS), True, total)
+    _passes(cand, u, steps, prior, set(DIRECTIONS), True, total)
     return total.astype(np.float32)
 
 
-def regularise(candidates: np.ndarray, unary: np.ndarray, *, max_error: float, prior: Prior, stripe: int = 1,
-               distances: np.ndarray | None = None) -> Regularised:
+def regularise(candidates: np.ndarray, unary: np.ndarray, *, max_error: float, prior: Prior,
+               steps: tuple[float, float] = (1.0, 0.0), distances: np.ndarray | None = None) -> Regularised:
     """Aggregate (`aggregate`) and decide (module docstring): a `Regularised`.
 
     candidates (H, W, K) int32 rows best-first (-1 absent); unary (H, W, K + 1) float32 nats
-    (none state last; `posterior_unaries` / `search_unaries`); max_error in (0, 1); stripe:
-    projector columns per codebook row; prior: `penalties`; distances: (H, W, K)
+    (none state last; `posterior_unaries` / `search_unaries`); max_error in (0, 1); prior:
+    `penalties`; steps: as `path_costs` (`surface_steps`); distances: (H, W, K)
     carried along the re-ordering (default: the candidates' unaries)."""
     if not 0 < max_error < 1:
         raise ValueError(f"max_error: expected a probability in (0, 1), got {max_error}")
-    cand, u = _check(candidates, unary, stripe, prior)
+    cand, u = _check(candidates, unary, steps, prior)
     h, w, k = cand.shape
     dist = u[..., :k] if distances is None else np.ascontiguousarray(distances, np.float32)
     if dist.shape != cand.shape:
         raise ValueError(f"distances: expected shape {cand.shape}, got {dist.shape}")
     total = np.empty(u.shape, np.float32)
-    _passes(cand, u, stripe, prior, set(DIRECTIONS), True, total)
+    _passes(cand, u, steps, prior, set(DIRECTIONS), True, total)
     col = np.empty((h, w), np.int32)
     valid = np.empty((h, w), np.bool_)
     err = np.empty((h, w), np.float32)
@@ -460,21 +478,46 @@ def search_unaries(candidates: np.ndarray, distances: np.ndarray, eligible: np.n
     return np.concatenate([u, none[..., None]], axis=2).astype(np.float32)
 
 
+def surface_steps(column: np.ndarray, ok: np.ndarray, *, stripe: int) -> tuple[float, float]:
+    """(s_x, s_y): the column step per camera pixel along x and y on one surface, measured on
+    this capture: the medians of the column differences of neighbouring `ok` pixels (rows;
+    the confidently decoded ones), each where at least `MIN_STEP_VOTES` pairs vote, else the
+    disparity convention's ``1 / stripe`` and 0 (a rectified camera and projector of equal
+    resolution).  column (H, W) int rows, ok (H, W) bool."""
+    if stripe < 1:
+        raise ValueError(f"stripe: expected >= 1, got {stripe}")
+    col = np.ascontiguousarray(column, np.float64)
+    vx = np.empty(col.shape, np.float64)
+    vy = np.empty(col.shape, np.float64)
+    _step_votes(col, np.ascontiguousarray(ok, np.bool_) & (col >= 0), vx, vy)
+    out = []
+    for votes, default in ((vx, 1.0 / stripe), (vy, 0.0)):
+        v = votes[np.isfinite(votes)]
+        out.append(float(np.median(v)) if v.size >= MIN_STEP_VOTES else default)
+    return out[0], out[1]
+
+
 def from_posterior(candidates: np.ndarray, distances: np.ndarray, error: np.ndarray, *, choices: int, stripe: int,
                    max_error: float) -> Regularised:
     """Method "sgm" under the "error" rule: `regularise` of `edge.decode.posterior`'s candidates
-    (H, W, K), distances ``L_k`` (H, W, K) and error (H, W) with `posterior_unaries` and the
-    default `penalties` for `choices` columns."""
+    (H, W, K), distances ``L_k`` (H, W, K) and error (H, W) with `posterior_unaries`, the
+    default `penalties` for `choices` columns and the `surface_steps` of the pixels with
+    ``error < max_error``."""
     prior = penalties(choices)
+    steps = surface_steps(candidates[..., 0], np.asarray(error) < max_error, stripe=stripe)
     return regularise(candidates, posterior_unaries(candidates, distances, error, choices=choices),
-                      max_error=max_error, stripe=stripe, prior=prior, distances=distances)
+                      max_error=max_error, steps=steps, prior=prior, distances=distances)
 
 
 def from_search(candidates: np.ndarray, distances: np.ndarray, eligible: np.ndarray, *, choices: int, stripe: int,
                 max_error: float) -> Regularised:
     """Method "sgm" under the "confidence" rule: `regularise` of the search's candidates and ML
-    distances (H, W, K) with `search_unaries` (none state: P2 where eligible) and the default
-    `penalties` for `choices` columns.  Ineligible pixels (contrast) are invalid."""
+    distances (H, W, K) with `search_unaries` (none state: ``P2 + log N`` where eligible), the
+    default `penalties` for `choices` columns and the `surface_steps` of the eligible pixels
+    whose runner-up is less than max_error as likely (``(d2 - d1) / 2 > log(1 / max_error)``).
+    Ineligible pixels (contrast) are invalid."""
     prior = penalties(choices)
-    return regularise(candidates, search_unaries(candidates, distances, eligible, none_cost=prior.p2 + prior.col_prior),
-                      max_error=max_error, stripe=stripe, prior=prior, distances=distances)
+    unary = search_unaries(candidates, distances, eligible, none_cost=prior.p2 + prior.col_prior)
+    steps = surface_steps(candidates[..., 0], np.asarray(eligible, bool) & (unary[..., 1] > math.log(1.0 / max_error)),
+                          stripe=stripe)
+    return regularise(candidates, unary, max_error=max_error, steps=steps, prior=prior, distances=distances)
