@@ -92,6 +92,8 @@ BIG = np.float32(1e6)
 NONE_CLIP = 80.0
 #: Fewer neighbour pairs than this: `surface_steps` keeps the disparity convention.
 MIN_STEP_VOTES = 200
+#: Largest |column step| between neighbours `surface_steps` counts (larger: depth edges).
+STEP_SPAN = 64
 #: Odds below exp(-_EXP_CUT) (1e-26) are counted as 0 (far below any error target).
 _EXP_CUT = 60.0
 _E_CLIP = math.exp(-NONE_CLIP)
@@ -259,13 +261,22 @@ def _disparities(cand, step_x, step_y, out):
 
 
 @njit(cache=True)
-def _step_votes(col, ok, out_x, out_y):
-    """Column differences of horizontally / vertically neighbouring `ok` pixels (NaN elsewhere)."""
+def _step_votes(col, ok, span, hist_x, hist_y):
+    """Histograms (offset `span`) of the column differences of horizontally / vertically
+    neighbouring `ok` pixels with ``|difference| <= span``."""
     height, width = col.shape
     for y in range(height):
         for x in range(width):
-            out_x[y, x] = col[y, x + 1] - col[y, x] if x + 1 < width and ok[y, x] and ok[y, x + 1] else np.nan
-            out_y[y, x] = col[y + 1, x] - col[y, x] if y + 1 < height and ok[y, x] and ok[y + 1, x] else np.nan
+            if not ok[y, x]:
+                continue
+            if x + 1 < width and ok[y, x + 1]:
+                d = col[y, x + 1] - col[y, x]
+                if -span <= d <= span:
+                    hist_x[d + span] += 1
+            if y + 1 < height and ok[y + 1, x]:
+                d = col[y + 1, x] - col[y, x]
+                if -span <= d <= span:
+                    hist_y[d + span] += 1
 
 
 @njit(cache=True, parallel=True)
@@ -480,20 +491,23 @@ def search_unaries(candidates: np.ndarray, distances: np.ndarray, eligible: np.n
 
 def surface_steps(column: np.ndarray, ok: np.ndarray, *, stripe: int) -> tuple[float, float]:
     """(s_x, s_y): the column step per camera pixel along x and y on one surface, measured on
-    this capture: the medians of the column differences of neighbouring `ok` pixels (rows;
-    the confidently decoded ones), each where at least `MIN_STEP_VOTES` pairs vote, else the
+    this capture: the (lower) medians of the column differences of neighbouring `ok` pixels
+    (rows; the confidently decoded ones; differences beyond `STEP_SPAN` are depth edges and do
+    not vote), each where at least `MIN_STEP_VOTES` pairs vote, else the
     disparity convention's ``1 / stripe`` and 0 (a rectified camera and projector of equal
     resolution).  column (H, W) int rows, ok (H, W) bool."""
     if stripe < 1:
         raise ValueError(f"stripe: expected >= 1, got {stripe}")
-    col = np.ascontiguousarray(column, np.float64)
-    vx = np.empty(col.shape, np.float64)
-    vy = np.empty(col.shape, np.float64)
-    _step_votes(col, np.ascontiguousarray(ok, np.bool_) & (col >= 0), vx, vy)
+    col = np.ascontiguousarray(column, np.int64)
+    hx = np.zeros(2 * STEP_SPAN + 1, np.int64)
+    hy = np.zeros(2 * STEP_SPAN + 1, np.int64)
+    _step_votes(col, np.ascontiguousarray(ok, np.bool_) & (col >= 0), STEP_SPAN, hx, hy)
     out = []
-    for votes, default in ((vx, 1.0 / stripe), (vy, 0.0)):
-        v = votes[np.isfinite(votes)]
-        out.append(float(np.median(v)) if v.size >= MIN_STEP_VOTES else default)
+    for hist, default in ((hx, 1.0 / stripe), (hy, 0.0)):
+        total = int(hist.sum())
+        # the lower median of the integer steps
+        out.append(float(np.searchsorted(np.cumsum(hist), (total + 1) // 2) - STEP_SPAN)
+                   if total >= MIN_STEP_VOTES else default)
     return out[0], out[1]
 
 
