@@ -337,7 +337,8 @@ def _decide(cand, dist, total, max_error, out_col, out_valid, out_err, out_none,
             out_col[y, x] = cb if ok else -1
 
 
-def _check(candidates: np.ndarray, unary: np.ndarray, steps: tuple[float, float], prior: Prior) -> tuple[np.ndarray, np.ndarray]:
+def _check(candidates: np.ndarray, unary: np.ndarray, steps: tuple[float, float],
+           prior: Prior) -> tuple[np.ndarray, np.ndarray]:
     cand = np.asarray(candidates)
     if cand.ndim != 3 or cand.shape[2] < 1:
         raise ValueError(f"candidates: expected an (H, W, K) array, got shape {cand.shape}")
@@ -473,7 +474,8 @@ def posterior_unaries(candidates: np.ndarray, distances: np.ndarray, error: np.n
     return out
 
 
-def search_unaries(candidates: np.ndarray, distances: np.ndarray, eligible: np.ndarray, *, none_cost: float) -> np.ndarray:
+def search_unaries(candidates: np.ndarray, distances: np.ndarray, eligible: np.ndarray, *,
+                   none_cost: float) -> np.ndarray:
     """(H, W, K + 1) float32 unaries under the "confidence" rule: ``(d_k - d_1) / 2`` of the
     search's ML distances (inf absent) and ``none_cost`` (nats) for the none state where
     `eligible`; only the none state (cost 0) elsewhere."""
