@@ -89,7 +89,8 @@ class Decoded:
         codebook row off (`edge.decode.posterior`; the "error" validity rule), else None.  Under
         that rule candidates / distances are the posterior's (re-ordered by likelihood, distances
         the negative log-likelihoods) and confidence is ``(d2 - d1) / d2`` of their Mahalanobis
-        parts.
+        parts; with method "sgm", candidates are re-ordered by aggregated cost and error is the
+        regularised one (`edge.decode.sgm`).
     """
 
     column: np.ndarray
