@@ -372,11 +372,13 @@ def main(argv=None) -> int:
         ("decode(): hard (default)", dict(method="hard")),
         ("decode(): hard, spatial_check=False", dict(method="hard", spatial_check=False)),
         ("decode(): list+median", dict(method="list+median")),
+        ("decode(): sgm", dict(method="sgm")),
         ("decode(): soft, levels='refit'", dict(method="soft", levels="refit")),
     ]
     for name, opts in runs:
         d, first, med, cpu = timed(lambda: decode(fr, wh, bl, code, **opts), args.repeats)
-        report(name, d.candidates[..., 0] if opts["method"] != "list+median" else d.column, first, med, cpu, bmed)
+        report(name, d.candidates[..., 0] if opts["method"] not in ("list+median", "sgm") else d.column, first, med,
+               cpu, bmed)
 
     hard_regime(args, report)
 

@@ -11,6 +11,11 @@ Methods (``method=``):
 * ``"list"``: soft + order prior along image rows (`edge.decode.spatial.order_prior`).
 * ``"median"``: soft + confidence median filter (`edge.decode.spatial.confidence_median`).
 * ``"list+median"``: order prior, then the median filter.
+* ``"sgm"``: semi-global regularisation of the top-3 candidates with a smoothness prior on
+  disparity (`edge.decode.sgm`; beyond the paper).  Under the "error" rule on the posterior's
+  likelihoods (candidates re-ordered by aggregated cost, error re-derived from it); under the
+  "confidence" rule on the search's ML distances, valid where eligible and its error <
+  ``max_error``.
 
 ``metric="ml"`` (default) or ``"normalized"`` (the paper's plain normalised distance) selects the
 per-sample costs for the soft methods.  ``levels="refit"`` re-estimates each pixel's on/off
@@ -51,6 +56,7 @@ from .levels import estimate_levels
 from .posterior import fit_noise, posterior, split_levels
 from .search import METRICS, band_args, check_call, search_candidates
 from .settings import DEFAULT_SETTINGS, METHODS, DecodeSettings
+from .sgm import from_posterior as sgm_from_posterior
 from .spatial import spatial_stage
 from .validity import eligibility, valid_mask
 
@@ -83,7 +89,8 @@ class Decoded:
         codebook row off (`edge.decode.posterior`; the "error" validity rule), else None.  Under
         that rule candidates / distances are the posterior's (re-ordered by likelihood, distances
         the negative log-likelihoods) and confidence is ``(d2 - d1) / d2`` of their Mahalanobis
-        parts.
+        parts; with method "sgm", candidates are re-ordered by aggregated cost and error is the
+        regularised one (`edge.decode.sgm`).
     """
 
     column: np.ndarray
@@ -173,7 +180,8 @@ def _decode(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code
     stack = estimate_levels(stack, code, "calibration" if s.levels == "auto" else s.levels, top1, iterations=iterations)
     found = search_candidates(stack, code, s, columns=ncols, band=band, stripe=stripe)
     column0, eligible = eligibility(stack, found.candidates, s.min_contrast)
-    spatial = spatial_stage(s, found.candidates, found.confidence, column0, eligible, stripe=stripe)
+    spatial = spatial_stage(s, found.candidates, found.confidence, column0, eligible, stripe=stripe,
+                            distances=found.distances, choices=band_choices(ncols, band, stripe))
     column, valid = valid_mask(spatial, found.confidence, eligible, s)
     return Decoded(column=column, confidence=found.confidence, valid=valid, candidates=found.candidates,
                    distances=found.distances, stats=found.stats)
@@ -214,7 +222,12 @@ def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, nc
                      choices=band_choices(ncols, band, stripe), inverse=stack.inverse, distances=found.distances)
     column0 = np.ascontiguousarray(post.candidates[..., 0])
     ok = s.max_error
-    if s.method in ("soft", "hard"):
+    if s.method == "sgm":  # semi-global regularisation of the candidates (edge.decode.sgm)
+        reg = sgm_from_posterior(post.candidates, post.distances, post.error, stripe=stripe, max_error=ok,
+                                 choices=band_choices(ncols, band, stripe))
+        column, valid = reg.column, reg.valid
+        post = post._replace(candidates=reg.candidates, distances=reg.distances, error=reg.error)
+    elif s.method in ("soft", "hard"):
         valid = (post.error < np.float32(ok)) & (column0 >= 0)
         column = np.where(valid, column0, -1).astype(np.int32)
     else:

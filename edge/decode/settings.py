@@ -7,7 +7,7 @@ facts (inverse frames, disparity band, columns in use, stripe width, bit depth) 
 
 Fields (units: normalised intensity, 1 = full scale of the frame dtype):
 
-* ``method``: "hard" | "soft" | "list" | "median" | "list+median" (see `edge.decode.decoder`).
+* ``method``: "hard" | "soft" | "list" | "median" | "list+median" | "sgm" (see `edge.decode.decoder`).
 * ``metric``: "ml" (heteroscedastic Gaussian likelihood) | "normalized" (the paper's distance).
 * ``levels``: "auto" (default: where the "error" rule applies, the search uses each pixel's on /
   off levels split from its own n + 2 samples and the rule refits them per candidate,
@@ -19,7 +19,8 @@ Fields (units: normalised intensity, 1 = full scale of the frame dtype):
   wrong, `edge.decode.posterior`, is below ``max_error``; the noise model is fitted from the
   capture) | "confidence" (the contrast / confidence thresholds below).
 * ``max_error`` in (0, 1): the error-probability target of the "error" rule (default 0.01: at
-  most about 1 in 100 published columns off by more than one codebook row).
+  most about 1 in 100 published columns off by more than one codebook row); method "sgm" uses
+  it under either rule (`edge.decode.sgm`).
 * ``sigma_r`` > 0, ``sigma_s`` >= 0: read + quantisation sigma and shot-noise coefficient
   (variance = sigma_r**2 + sigma_s**2 * I) of the search; under the "error" rule a prior only
   (the rule fits the noise model from the capture's residuals).
@@ -43,7 +44,7 @@ from .backends import BACKEND_NAMES
 
 #: The one list of each choice (profiles, the CLI and the service take theirs from here; the
 #: backends from their registry, `edge.decode.backends._MODULES`).
-METHODS = ("hard", "soft", "list", "median", "list+median")
+METHODS = ("hard", "soft", "list", "median", "list+median", "sgm")
 METRIC_NAMES = ("ml", "normalized")
 LEVELS = ("auto", "calibration", "refit")
 VALIDITY = ("auto", "error", "confidence")

@@ -31,7 +31,8 @@ Disparity convention (docs/architecture.md): a pixel at camera column x decoded 
   neighbours (used by `decode`'s valid mask; columns unchanged).
 
 `spatial_stage` is stage 4 of `edge.decode.decode`: it runs the filters the settings' method asks
-for on the candidate search's output, with the pattern's stripe width.
+for on the candidate search's output, with the pattern's stripe width (method "sgm":
+`edge.decode.sgm`).
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from numba import njit, prange
 
 from .kernels import sort_small as _sort_small
 from .settings import DecodeSettings
+from .sgm import from_search as sgm_from_search
 
 
 @njit(cache=True, inline="always")
@@ -452,7 +454,8 @@ class Spatial(NamedTuple):
 
 
 def spatial_stage(settings: DecodeSettings, candidates: np.ndarray, confidence: np.ndarray, column: np.ndarray,
-                  eligible: np.ndarray, *, stripe: int) -> Spatial:
+                  eligible: np.ndarray, *, stripe: int, distances: np.ndarray | None = None,
+                  choices: int | None = None) -> Spatial:
     """The spatial methods of ``settings.method`` on a candidate search's output.
 
     candidates: (H, W, 3) int32 rows best-first; confidence: (H, W) float32; column: (H, W) int32
@@ -460,9 +463,17 @@ def spatial_stage(settings: DecodeSettings, candidates: np.ndarray, confidence: 
     stripe: projector columns per codebook row (the disparity of the filters is in projector
     pixels).  "soft" / "hard": the support test (t_vote = t_high) if ``spatial_check``;
     "list": `order_prior`; "median": `confidence_median` (with the candidates); "list+median":
-    both in turn.
+    both in turn; "sgm": `edge.decode.sgm.from_search` on the search's ML `distances` (H, W, 3)
+    with N = `choices` candidate columns (both required), valid where eligible and its error
+    probability < ``max_error``.
     """
     method, t_low, t_high = settings.method, settings.t_low, settings.t_high
+    if method == "sgm":
+        if distances is None or choices is None:
+            raise ValueError("method 'sgm': expected the search's distances and choices (candidate columns), got None")
+        reg = sgm_from_search(candidates, distances, eligible, choices=choices, stripe=stripe,
+                              max_error=settings.max_error)
+        return Spatial(reg.column, None, reg.valid)
     if method in ("soft", "hard"):
         support = spatial_support(column, confidence, eligible, t_vote=t_high) if settings.spatial_check else None
         return Spatial(column, support, None)
@@ -473,5 +484,5 @@ def spatial_stage(settings: DecodeSettings, candidates: np.ndarray, confidence: 
         column, valid = confidence_median(column, confidence, eligible & (column >= 0), t_low=t_low,
                                           t_high=t_high, candidates=candidates, stripe=stripe)
     if valid is None:
-        raise ValueError(f"method: expected one of soft, hard, list, median, list+median, got {method!r}")
+        raise ValueError(f"method: expected one of soft, hard, list, median, list+median, sgm, got {method!r}")
     return Spatial(column, None, valid)

@@ -247,7 +247,7 @@ def test_real_warm_up_covers_every_switchable_variant():
     profile = load_test_profile()
     labels = [label for label, _ in switchable_variants(profile)]
     assert labels == ["decoder.method=hard", "decoder.method=list", "decoder.method=median",
-                      "decoder.method=list+median", "edc"]  # every method of edge.decode.settings.METHODS
+                      "decoder.method=list+median", "decoder.method=sgm", "edc"]  # every method of edge.decode.settings.METHODS
     report = warm_up_all(profile, make_pipeline, make_pipeline(profile))
     assert report.done and not report.failed and set(report.seconds) == {"profile", *labels}
 

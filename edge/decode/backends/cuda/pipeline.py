@@ -83,8 +83,10 @@ def decode_device(ds: DeviceStack, code: Code, s: DecodeSettings, *, columns: in
     elig = buffer(buffers, "eligible", (h, w), np.bool_, stream)
     valid_k.eligible_column[grid, valid_k.TPB, stream](cand, ds.white, ds.black, np.float32(ds.scale),
                                                        np.float32(s.min_contrast), col0, elig)
+    from ...decoder import band_choices  # N of method "sgm" (host stage)
+
     out = {"candidates": cand, "distances": dist, "confidence": conf, "column0": col0, "eligible": elig,
-           "stats": st}
+           "stats": st, "choices": band_choices(columns, band, stripe)}
     if s.method in ("soft", "hard"):
         column = buffer(buffers, "column", (h, w), np.int32, stream)
         valid = buffer(buffers, "valid", (h, w), np.bool_, stream)
@@ -127,7 +129,7 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     copied back (each array once, through `to_host`): methods "soft" / "hard" download exactly
     the wanted fields (column, valid come from the device's mask); "list" / "median" /
     "list+median" download candidates, confidence, column0 and eligible (the host stages
-    `spatial_stage` + `valid_mask` need them) and distances only when wanted.  The values of
+    `spatial_stage` + `valid_mask` need them) and distances only when wanted ("sgm": always).  The values of
     the fields returned do not depend on `outputs`.  stats gains ``downloaded`` (the names
     copied back) and ``download_bytes``.  t0: perf_counter at the upload; stats["seconds"]
     becomes the time from it to the results on the host.  stripe: projector columns per
@@ -140,7 +142,8 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     if s.method in ("soft", "hard"):
         names = [f for f in FIELDS if f in want]
     else:
-        names = ["candidates", "confidence", "column0", "eligible"] + (["distances"] if "distances" in want else [])
+        names = ["candidates", "confidence", "column0", "eligible"] + (
+            ["distances"] if "distances" in want or s.method == "sgm" else [])
     host = {k: to_host(k, out[k], stream) for k in names}
     if stream != 0:
         stream.synchronize()
@@ -153,7 +156,7 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
         column, valid = host.get("column"), host.get("valid")
     else:
         spatial = spatial_stage(s, host["candidates"], host["confidence"], host["column0"], host["eligible"],
-                                stripe=stripe)
+                                stripe=stripe, distances=host.get("distances"), choices=out.get("choices"))
         column, valid = valid_mask(spatial, host["confidence"], host["eligible"], s)
     got = {"column": column, "valid": valid, "confidence": host.get("confidence"),
            "candidates": host.get("candidates"), "distances": host.get("distances")}
