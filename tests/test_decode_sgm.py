@@ -269,7 +269,8 @@ def _rates(gen, ratio):
 #   edge.sim ambient 1: 8.21 % -> 0.93 % (8.8x), 0.06 %;  ambient 2: 22.0 % -> 13.5 %, 0.10 %
 #     (8.8 % of its lit pixels have no top-3 candidate within one row: 13.2 -> 4.7 points above that)
 #   plane-box-sphere ambient 1: 2.13 % -> 0.18 % (11.8x), 0.02 %;  ambient 2: 16.6 % -> 1.91 % (8.7x), 0.08 %
-@pytest.mark.parametrize("gen, ratio, factor", [(_sim, 1.0, 4.0), (_pbs, 1.0, 4.0), (_pbs, 2.0, 3.0)])
+#   (ambient 1.25 since the posterior's tail term: soft errs on just under 2 % at ambient 1)
+@pytest.mark.parametrize("gen, ratio, factor", [(_sim, 1.0, 4.0), (_pbs, 1.25, 4.0), (_pbs, 2.0, 3.0)])
 def test_sgm_cuts_soft_errors_with_defaults(gen, ratio, factor):
     r = _rates(gen, ratio)
     (soft, _), (sgm, sgm_far) = r["soft"], r["sgm"]
