@@ -60,7 +60,7 @@ def test_levels_experiment_pairs_noise_and_self_calibration_beats_the_calibratio
     # at exposure T/n (here 13.3 vs 14.4 % and 12.6 vs 20.8 %), and for ecc-63-10 it recovers
     # nearly all of what noise-free calibration frames would give.  (gray-10 is not asserted: here
     # its self-calibration is 1.4 points worse than its calibration frames, 47.7 vs 46.3 %; in the
-    # full sweep the two are within 0.6 points, see docs/results/eval/README.md.)
+    # full sweep the two are within 0.5 points, see docs/results/eval/README.md.)
     for name in ("ecc-22-10", "ecc-63-10"):
         assert by[("levels", f"{name} self-calibrated")] < by[("levels", f"{name} calibration")]
     oracle, cal = by[("levels", "ecc-63-10 oracle")], by[("levels", "ecc-63-10 calibration")]
