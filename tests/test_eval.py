@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
-from edge.decode.settings import DecodeSettings, from_profile
+from edge.decode.settings import DEFAULT_SETTINGS, DecodeSettings, from_profile
 from edge.eval.edc import SINGLE_PASS
 from edge.eval.report import markdown_table, profile_sections
 from edge.eval.sweep import EXPERIMENTS, SweepConfig, configurations
@@ -14,17 +15,18 @@ from edge.profiles.files import apply_update
 
 def _evaluated() -> list[DecodeSettings]:
     out = [SINGLE_PASS]
-    for levels in ("refined", "calibration"):
+    for levels in ("auto", "calibration"):
         out += configurations(SweepConfig(levels=levels))
     return list(dict.fromkeys(out))
 
 
 def test_every_evaluated_configuration_round_trips_through_a_profile():
     configs = _evaluated()
-    # the sweep's grid: 4 methods x the level sources, the noise of each camera model
+    # the sweep's grid: 4 methods x the level sources, nothing else changed from the library defaults
     assert {c.method for c in configs} == {"hard", "soft", "list", "median"}
-    assert {c.levels for c in configs} <= {"auto", "calibration", "refit"}
-    assert {c.sigma_s for c in configs} >= {1e-4, 0.015, 0.04}
+    assert {c.levels for c in configs} == {"auto", "calibration"}
+    for c in configs:
+        assert c == DEFAULT_SETTINGS.replace(method=c.method, levels=c.levels), c
     base = load_profile("sim-dlp")
     for settings in configs:
         sections = profile_sections(settings)
@@ -34,15 +36,35 @@ def test_every_evaluated_configuration_round_trips_through_a_profile():
         assert from_profile(profile) == settings, settings
 
 
-def test_sweep_levels_map_onto_settings():
-    by_levels = {lv: configurations(SweepConfig(levels=lv, experiments=("decode_quant",))) for lv in ("refined", "calibration")}
-    assert {c.levels for c in by_levels["refined"]} == {"refit"}
+def test_sweep_runs_the_library_defaults():
+    by_levels = {lv: configurations(SweepConfig(levels=lv, experiments=("decode_quant",))) for lv in ("auto", "calibration")}
+    assert by_levels["auto"] == [DEFAULT_SETTINGS.replace(method=m) for m in ("hard", "soft", "list", "median")]
     assert {c.levels for c in by_levels["calibration"]} == {"calibration"}
-    assert all(c.min_contrast == 0.0 and c.min_confidence == 0.0 for c in by_levels["refined"])
-    # the levels experiment decodes its oracle rows with the calibration levels (noise-free white / black)
+    # soft / list / median decode under the self-calibrating error rule, hard under the confidence rule
+    assert [c.rule(False) for c in by_levels["auto"]] == ["confidence", "error", "error", "error"]
+    # the levels experiment: the default self-calibration, the calibration frames, and the oracle
+    # (noise-free white / black decoded with the calibration levels)
     lv = configurations(SweepConfig(experiments=("levels",)))
-    assert {c.levels for c in lv} == {"calibration", "refit"}
+    assert lv == [DEFAULT_SETTINGS, DEFAULT_SETTINGS.replace(levels="calibration")]
     assert len(configurations(SweepConfig(experiments=EXPERIMENTS))) == len(configurations(SweepConfig()))
+
+
+def test_edc_single_pass_is_the_defaults_and_reads_every_pixel():
+    """`edge edc eval` decodes with the defaults (method hard); the column it scores, the top-1
+    candidate (the nearest codeword), does not depend on the validity thresholds."""
+    from edge.codes import get_code
+    from edge.decode import decode
+    from edge.sim import CameraModel, capture_code, make_scene
+
+    assert SINGLE_PASS == DEFAULT_SETTINGS.replace(method="hard")
+    code = get_code("xor02-10+crc5")
+    cap = capture_code(make_scene("flying", 64, 48, seed=0), code, CameraModel(sigma_s=0.04, ambient=0.4,
+                                                                                 projector=0.1), rng=1)
+    dec = decode(cap.frames, cap.white, cap.black, code, settings=SINGLE_PASS)
+    bare = decode(cap.frames, cap.white, cap.black, code, settings=SINGLE_PASS, min_contrast=0.0,
+                  min_confidence=0.0, spatial_check=False)
+    assert 0 < dec.valid.sum() < bare.valid.sum()  # the default thresholds reject pixels ...
+    assert np.array_equal(dec.candidates[..., 0], bare.candidates[..., 0])  # ... but not the columns scored
 
 
 def test_markdown_table_shape():

@@ -30,6 +30,8 @@ def test_tiny_sweep_writes_plots_table_and_claims(tmp_path):
     by = {(r.series, r.x): r.error_rate for r in rows}
     for ss in (0.015, 0.04):
         assert by[(f"gray-10 s={ss}", 2.0)] < by[(f"gray-10 s={ss}", 0.05)]
+    # the coding gain with the defaults (2.5 % vs 0.07 % here)
+    assert 3 * by[("ecc-22-10 s=0.04", 2.0)] < by[("gray-10 s=0.04", 2.0)]
     assert all(0.0 <= r.error_rate <= 1.0 and r.pixels > 1000 for r in rows)
     for r in rows:  # per-albedo-band error rates add up to the overall one
         assert len(r.band_error) == len(BANDS) and sum(r.band_pixels) == r.pixels
@@ -44,17 +46,42 @@ def test_tiny_sweep_writes_plots_table_and_claims(tmp_path):
     assert len(claims(rows)) == 4 and all(c["agree"] in ("yes", "partly", "no") for c in claims(rows))
 
 
-def test_levels_experiment_pairs_noise_and_oracle_levels_help():
+def test_levels_experiment_pairs_noise_and_self_calibration_beats_the_calibration_frames():
     decoder = edge_decoder()
     cfg = SweepConfig(width=64, height=48, seeds=(0,), ratios=(0.4,), experiments=("levels", "soft_quant"))
     rows = run_sweep(cfg, decoder, progress=False)
-    by = {(r.experiment, r.series): r for r in rows}
-    # same capture, same noise: the levels experiment's "refined" row equals soft_quant's row
-    assert by[("levels", "ecc-22-10 refined")].error_rate == by[("soft_quant", "ecc-22-10 s=0.04")].error_rate
-    for name in ("gray-10", "ecc-63-10"):
-        cal = by[("levels", f"{name} calibration")].error_rate
-        assert by[("levels", f"{name} oracle")].error_rate <= cal
-        assert by[("levels", f"{name} refined")].error_rate <= cal
+    by = {(r.experiment, r.series): r.error_rate for r in rows}
+    # same capture, same noise, same (default) settings: the levels experiment's self-calibrated row
+    # equals soft_quant's row
+    assert by[("levels", "ecc-22-10 self-calibrated")] == by[("soft_quant", "ecc-22-10 s=0.04")]
+    for name in ("gray-10", "ecc-22-10", "ecc-63-10"):
+        assert by[("levels", f"{name} oracle")] <= by[("levels", f"{name} calibration")]
+    # the codes with many frames: the default self-calibration beats the single calibration frames
+    # at exposure T/n (here 13.3 vs 14.4 % and 12.6 vs 20.8 %), and for ecc-63-10 it recovers
+    # nearly all of what noise-free calibration frames would give.  (gray-10 is not asserted: here
+    # its self-calibration is 1.4 points worse than its calibration frames, 47.7 vs 46.3 %; in the
+    # full sweep the two are within 0.5 points, see docs/results/eval/README.md.)
+    for name in ("ecc-22-10", "ecc-63-10"):
+        assert by[("levels", f"{name} self-calibrated")] < by[("levels", f"{name} calibration")]
+    oracle, cal = by[("levels", "ecc-63-10 oracle")], by[("levels", "ecc-63-10 calibration")]
+    assert by[("levels", "ecc-63-10 self-calibrated")] - oracle < 0.25 * (cal - oracle)
+
+
+def test_decoding_methods_with_the_defaults():
+    """The paper's decode_quant claims with the library defaults (wrong or unpublished = error):
+    hard > soft, list and median each cut soft's error >= 2x where soft errs on a few percent."""
+    cfg = SweepConfig(width=64, height=48, seeds=(0,), ratios=(0.63, 2.0), experiments=("decode_quant",))
+    rows = run_sweep(cfg, edge_decoder(), progress=False)
+    by = {(r.series, r.x): r for r in rows}
+    assert {r.extra["validity"] for r in rows if r.series != "hard"} == {"error"}
+    for x in (0.63, 2.0):
+        assert by[("hard", x)].error_rate > by[("soft", x)].error_rate
+    soft = by[("soft", 0.63)].error_rate
+    assert 0.02 < soft < 0.3  # the regime of the claim (here 6.2 %; list 3.0 %, median 1.6 %)
+    for method in ("list", "median"):
+        assert by[(method, 0.63)].error_rate <= soft / 2
+    # the soft rule publishes almost nothing wrong: its error is pixels it withholds
+    assert by[("soft", 0.63)].wrong_rate < 0.1 * soft
 
 
 def test_sweep_config_rejects_bad_values():
@@ -62,3 +89,5 @@ def test_sweep_config_rejects_bad_values():
         SweepConfig(experiments=("soft_quant", "nope"))
     with pytest.raises(ValueError, match="levels"):
         SweepConfig(levels="oracle")
+    with pytest.raises(ValueError, match="levels"):
+        SweepConfig(levels="refined")  # the old refit-twice source is no longer a sweep setting

@@ -26,21 +26,20 @@ from edge.capture import CodedCapture
 def reference_decoder(cap: CodedCapture, code: Code, settings: DecodeSettings,
                       band: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
     """Brute-force decoder over the disparity band: squared distance of normalised intensities
-    ("soft") or Hamming distance of thresholded symbols ("hard") to every candidate codeword.
-    levels="refit": decode once, refit the levels with `edge.decode.levels`, decode again.
-    Reads only ``settings.method`` and ``settings.levels``."""
+    ("soft") or Hamming distance of thresholded symbols ("hard") to every candidate codeword, for
+    every pixel (no validity rule).  levels="auto": each pixel's on / off levels split from its
+    own n + 2 samples (`edge.decode.posterior.split_levels`, the library's self-calibration);
+    "calibration": the white / black frames.  Reads only ``settings.method`` and ``settings.levels``."""
     method, levels = settings.method, settings.levels
     f = cap.frames.astype(np.float32)
     white = cap.white.astype(np.float32)
     black = cap.black.astype(np.float32)
-    if levels == "refit":
-        from edge.decode.levels import initial_levels, refine_levels
+    if levels == "auto":
+        from edge.decode.posterior import split_levels
 
         scale = np.float32(1.0 / ((1 << cap.bits) - 1))
-        wn, bn = initial_levels(f * scale, white * scale, black * scale)  # (white, black)
-        col, _ = _brute(f * scale, wn, bn, code, method, band, cap.stripe, 1e-6)
-        wn, bn = refine_levels(f * scale, wn, bn, code, col)
-        return _brute(f * scale, wn, bn, code, method, band, cap.stripe, 1e-6)
+        on, off, _ = split_levels(f, white, black, float(scale))
+        return _brute(f * scale, on, off, code, method, band, cap.stripe, 1e-6)
     return _brute(f, white, black, code, method, band, cap.stripe, 1.0)
 
 
@@ -83,8 +82,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--experiments", default=None, help="comma-separated subset of experiments")
     ap.add_argument("--report-only", action="store_true",
                     help="rewrite README.md and plots from --out/results.json (e.g. after editing findings.md)")
-    ap.add_argument("--levels", choices=("refined", "calibration"), default="refined",
-                    help="decoder on/off levels: refitted from the code frames (default) or the calibration frames")
+    ap.add_argument("--levels", choices=("auto", "calibration"), default="auto",
+                    help="decoder on/off levels: the library default (auto: self-calibrated) or the calibration frames")
     args = ap.parse_args(argv)
     if args.report_only:
         import json

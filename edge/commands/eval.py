@@ -1,9 +1,9 @@
 """``edge eval``: simulator evaluation.
 
-    edge eval sweep [--quick] [--out docs/results/eval] [--experiments a,b] [--levels refined|calibration]
+    edge eval sweep [--quick] [--out docs/results/eval] [--experiments a,b] [--levels auto|calibration]
 
-runs the paper's comparisons (see `edge.eval.sweep`) with `edge.decode.decode`, with a progress
-bar, and writes PNG plots, results.json and README.md (claims, tables, per-albedo-band tables)
+runs the paper's comparisons (see `edge.eval.sweep`) with `edge.decode.decode` and its defaults,
+with a progress bar, and writes PNG plots, results.json and README.md (claims, tables, per-albedo-band tables)
 into ``--out``; a ``findings.md`` already in ``--out`` is inserted into the README.
 """
 
@@ -24,8 +24,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sweep.add_argument("--out", type=Path, default=Path("docs/results/eval"), help="output folder")
     sweep.add_argument("--experiments", default=None,
                        help="comma-separated subset of soft_quant,decode_quant,read_noise,arrangement,nary,levels,bits8")
-    sweep.add_argument("--levels", choices=("refined", "calibration"), default="refined",
-                       help="decoder on/off levels: refitted from the code frames (default) or the calibration frames")
+    sweep.add_argument("--levels", choices=("auto", "calibration"), default="auto",
+                       help="decoder on/off levels: the library default (auto: self-calibrated from each pixel's "
+                            "samples) or the calibration frames")
     sweep.add_argument("--no-progress", action="store_true", help="no progress bar")
     sweep.set_defaults(func=run_sweep_command)
     parser.set_defaults(func=lambda args: (parser.print_help(), 2)[1])
@@ -43,7 +44,7 @@ def run_sweep_command(args: argparse.Namespace) -> int:
     rows = run_sweep(cfg, decoder, progress=not args.no_progress)
     command = "edge eval sweep" + (" --quick" if args.quick else "") + (
         f" --experiments {args.experiments}" if args.experiments else "") + (
-        f" --levels {args.levels}" if args.levels != "refined" else "") + f" --out {args.out}"
+        f" --levels {args.levels}" if args.levels != "auto" else "") + f" --out {args.out}"
     path = write_report(rows, args.out, cfg, command=command, decoder_name=DECODER_NAME,
                         seconds=time.perf_counter() - t0, preamble=read_findings(args.out))
     print(f"wrote {path}", file=sys.stderr)

@@ -12,9 +12,10 @@ single pass vs equal-budget baselines, on the GI scenes of `GI_SCENES`, written 
 Definitions (all counts in camera pixels):
 
 * single pass: one capture of the code at fixed total exposure; hard decision then the nearest
-  codeword (`edge.decode.decode` with `SINGLE_PASS`: method "hard", min_contrast =
-  min_confidence = 0, i.e. every pixel's column, no rejection) -- what a sensor reports without
-  any error map.  A pixel is WRONG when its column differs from the true one
+  codeword (`edge.decode.decode` with `SINGLE_PASS`: the library defaults with method "hard";
+  the evaluation reads the top-1 candidate of every pixel, ``Decoded.candidates[..., 0]``, which
+  no validity threshold changes, i.e. every pixel's column, no rejection) -- what a sensor reports
+  without any error map.  A pixel is WRONG when its column differs from the true one
   (`edge.sim.metrics.truth_columns`) or when the projector does not reach it at all (ground
   truth -1) -- indirect light alone produces plausible-looking but meaningless words there.
 * error maps (True = reject): EDC (`edge.decode.check`, parameter-free), contrast
@@ -46,8 +47,10 @@ from ..sim.metrics import truth_columns
 from .report import pyplot, save_figure
 
 #: Decoder settings of every single pass of this evaluation (the unchecked reference a sensor
-#: without an error map reports): hard decisions, nearest codeword for every pixel.
-SINGLE_PASS: DecodeSettings = DEFAULT_SETTINGS.replace(method="hard", min_contrast=0.0, min_confidence=0.0)
+#: without an error map reports): the library defaults with hard decisions (the CRC check is a
+#: check of hard-decided bits).  The evaluation takes every pixel's nearest codeword
+#: (``candidates[..., 0]``), which the defaults' validity thresholds do not change.
+SINGLE_PASS: DecodeSettings = DEFAULT_SETTINGS.replace(method="hard")
 
 #: GI scenes of the evaluation (see docs/results/edc/README.md).  Each entry: scene parameters of
 #: `edge.sim.make_scene`, plus ``base`` (the scene generator, default: the label up to a '-<digits>'
