@@ -7,7 +7,10 @@ fields asked for, each array once through `to_host`; the runtime asks for `HOST_
 Methods "soft" / "hard" get their valid mask on the device (`validity`); "list" / "median" /
 "list+median" take the device's candidates, confidence and eligibility to the host filters of
 `edge.decode.spatial` (sequential along rows, as the CPU backend does).  ``levels="refit"`` follows
-`edge.decode.decode_refined` (one refit iteration) with `refit`'s kernels.
+`edge.decode.decode_refined` (one refit iteration) with `refit`'s kernels.  Under the "error"
+validity rule (`DecodeSettings.rule`) `decode_device` hands over to `error_device`
+(`edge.decode.decoder._decode_error_rule` with `posterior`'s kernels); `finish` then also
+downloads ``error`` (the `Decoded` field).
 """
 
 from __future__ import annotations
@@ -263,11 +266,13 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     outputs: the `Decoded` fields wanted on the host (default all of `FIELDS`; the runtime asks
     for `HOST_OUTPUTS`).  Fields not in `outputs` are None in the returned `Decoded`.  What is
     copied back (each array once, through `to_host`): methods "soft" / "hard" download exactly
-    the wanted fields (column, valid come from the device's mask); "list" / "median" /
+    the wanted fields (column, valid come from the device's mask; under the "error" rule
+    ``error`` too, always, and the "list" / "median" methods take candidates, confidence and
+    error to the host filters); confidence-rule "list" / "median" /
     "list+median" download candidates, confidence, column0 and eligible (the host stages
     `spatial_stage` + `valid_mask` need them) and distances only when wanted ("sgm": always).  The values of
     the fields returned do not depend on `outputs`.  stats gains ``downloaded`` (the names
-    copied back) and ``download_bytes``.  t0: perf_counter at the upload; stats["seconds"]
+    copied back, the error rule's intermediate downloads first) and ``download_bytes``.  t0: perf_counter at the upload; stats["seconds"]
     becomes the time from it to the results on the host.  stripe: projector columns per
     codebook row (the spatial filters work in projector pixels)."""
     from ...decoder import Decoded

@@ -353,8 +353,11 @@ def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits,
 
 @cuda.jit(device=True)
 def _gain_bin(g, bin_width, nb):
-    u = math.sqrt(g if g > 0.0 else 0.0)
-    return min(np.int64(u / bin_width), np.int64(nb))
+    """The bin of gain g: min(int(sqrt(max(g, 0)) / bin_width), nb) (clamped before the cast)."""
+    q = math.sqrt(g if g > 0.0 else 0.0) / bin_width
+    if q >= nb:
+        return np.int64(nb)
+    return np.int64(q)
 
 
 @cuda.jit
