@@ -152,29 +152,40 @@ def check_error_rule(name, code_name, *, h, w, inverse=False, band=True, dtype=n
                    f"downloaded {dl.names}")
 
 
-def check_error_rule_runtime(name):
-    """The runtime's reduced download under the "error" rule: column, confidence, valid and
-    error come back with the CPU's values; candidates / distances stay on the device; the
-    intermediate downloads are the small fit / histogram arrays only (never a per-pixel float64 array)."""
-    from _service_helpers import load_test_profile
-
-    from edge.runtime.pipeline import DepthPipeline
+def check_error_rule_reduced(name):
+    """The reduced download under the "error" rule (`pipeline.decode_whole` and `Staging.decode`
+    with the runtime's `HOST_OUTPUTS`): column, confidence, valid and error come back with the
+    CPU's values; candidates / distances stay on the device; the other downloads are the small
+    noise-fit / histogram arrays only (counted at the `to_host` seam, = stats download_bytes)."""
+    from edge.decode.backends.cuda.pipeline import HOST_OUTPUTS, decode_whole
+    from edge.decode.backends.cuda.staging import Staging
+    from edge.decode.settings import DEFAULT_SETTINGS
 
     code = get_code("ecc-22-10")
-    cap, white, black = capture(code, 3, 24, band_center=-30, dark=0.1)
-    cpu_pipe = DepthPipeline(load_test_profile(decoder={"method": "soft", "validity": "error"}))
-    gpu_pipe = DepthPipeline(load_test_profile(decoder={"method": "soft", "validity": "error", "backend": "cuda"}))
-    ref = cpu_pipe.decode(cap.frames, white, black)
-    with Downloads() as dl:
-        got = gpu_pipe.decode(cap.frames, white, black)
-    same = all(np.array_equal(getattr(ref, f), getattr(got, f)) for f in ("column", "valid"))
-    close = np.allclose(ref.confidence, got.confidence, rtol=ERR_RTOL, atol=ERR_ATOL)
-    results = [k for k in dl.names if k in FIELDS or k == "error"]
-    ok = same and close and sorted(results) == sorted(["column", "confidence", "valid", "error"])
-    ok &= got.candidates is None and got.distances is None and got.error is not None
-    ok &= dl.bytes == got.stats["download_bytes"] and int(ref.valid.sum()) > 0
-    ok &= got.stats.get("rule") == "error" and ref.stats.get("rule") == "error"
-    emit(name, ok, f"downloaded {dl.names} ({dl.bytes} B), same {same}, close {close}, valid {int(ref.valid.sum())}")
+    h, w = 3, 24
+    cap, white, black = capture(code, h, w, band_center=4, dark=0.1)
+    s = DEFAULT_SETTINGS.replace(validity="error", backend="cuda")
+    facts = dict(min_disparity=0, max_disparity=8)
+    ref = decode(cap.frames, white, black, code, settings=s.replace(backend="cpu"), **facts)
+    details, ok = [], int(ref.valid.sum()) > 0
+    small = {"split_s2", "split_mu", "fit_s2", "fit_mu", "gain_counts", "split_on", "split_off"}
+    for label in ("whole", "staged"):
+        with Downloads() as dl:
+            if label == "whole":
+                got = decode_whole(cap.frames, white, black, code, s, outputs=HOST_OUTPUTS, **facts)
+            else:
+                stage = Staging(code.n, (h, w), cap.frames.dtype)
+                got = stage.decode_stack(cap.frames, white, black, code, s, outputs=HOST_OUTPUTS, **facts)
+        results = [k for k in dl.names if k not in small]
+        same = all(np.array_equal(getattr(ref, f), getattr(got, f)) for f in ("column", "valid"))
+        close = all(np.allclose(getattr(ref, f), getattr(got, f), rtol=ERR_RTOL, atol=ERR_ATOL)
+                    for f in ("confidence", "error"))
+        ok &= same and close and sorted(results) == sorted(["column", "confidence", "valid", "error"])
+        ok &= set(dl.names) - set(results) <= small and "gain_counts" in dl.names
+        ok &= got.candidates is None and got.distances is None and got.stats.get("rule") == "error"
+        ok &= dl.bytes == got.stats["download_bytes"]
+        details.append(f"{label}: downloaded {dl.names} ({dl.bytes} B), same {same}, close {close}")
+    emit(name, ok, "; ".join(details) + f"; valid {int(ref.valid.sum())}")
 
 
 def check_validity(name, *, h, w):
@@ -714,7 +725,9 @@ def main() -> int:
             "error-rule-ecc-22-10-hard-calibration", "ecc-22-10", h=b[0], w=b[1], method="hard", levels="calibration")),
         ("error-rule-ecc-22-10-fitted", lambda: check_error_rule("error-rule-ecc-22-10-fitted", "ecc-22-10", h=24,
                                                                  w=24, fitted=True)),
-        ("error-rule-runtime", lambda: check_error_rule_runtime("error-rule-runtime")),
+        ("error-rule-reduced-download", lambda: check_error_rule_reduced("error-rule-reduced-download")),
+        ("error-rule-ecc-22-10-sgm", lambda: check_error_rule("error-rule-ecc-22-10-sgm", "ecc-22-10", h=b[0], w=b[1],
+                                                              method="sgm")),
         ("staging", lambda: check_staging("staging", "ecc-22-10", h=b[0], w=b[1])),
         ("runtime-pipeline", lambda: check_runtime_pipeline("runtime-pipeline")),
         ("reduced-download", lambda: check_reduced_download("reduced-download")),

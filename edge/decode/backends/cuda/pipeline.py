@@ -156,7 +156,8 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     "error", stats (the search's + noise_a, noise_beta, noise_fitted, rule, levels, and
     ``side_downloads``: (name, bytes) of the intermediate downloads)."""
     from ...decoder import band_choices
-    from ...posterior import FIT_PIXELS, GAIN_BIN, TAIL_FLOOR, _noise_from, _steps, fdr_lookup, gain_bins
+    from ...posterior import (FIT_PIXELS, GAIN_BIN, SKIP_MARGIN, SPLIT_ITERATIONS, TAIL_FLOOR, _noise_from, _steps,
+                              fdr_lookup, gain_bins)
 
     h, w = ds.shape
     n = int(ds.frames.shape[0])
@@ -178,7 +179,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
         s2 = buffer(buffers, "split_s2", (k,), np.float64, stream)
         mu = buffer(buffers, "split_mu", (k,), np.float64, stream)
         post_k.split_levels[grid, post_k.TPB, stream](ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale,
-                                                      step, on, off, s2, mu)
+                                                      int(SPLIT_ITERATIONS), step, on, off, s2, mu)
         f32 = buffer(buffers, "split_frames", (n, h, w), np.float32, stream)
         inv32 = (buffer(buffers, "split_inverse", (n, h, w), np.float32, stream) if ds.has_inv
                  else _dummy("inv32", (1, 1, 1), np.float32))
@@ -193,7 +194,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
         s = s.replace(sigma_r=float(np.sqrt(first.a)), sigma_s=float(np.sqrt(first.beta)))
     else:
         searched = ds
-    cand, _, _, st = _search(searched, code, s.method, s, metric, columns, band, stripe, stream, buffers)
+    cand, dist, _, st = _search(searched, code, s.method, s, metric, columns, band, stripe, stream, buffers)
     tb = posterior_tables(code, ds.has_inv)
     sy, sx = _steps(h, w)
     rows, cols = -(-h // sy), -(-w // sx)
@@ -210,8 +211,8 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     comp = buffer(buffers, "post_competitors", (h, w), np.float64, stream)
     gain = buffer(buffers, "post_gain", (h, w), np.float64, stream)
     post_k.posterior_kernel[grid, post_k.TPB, stream](
-        ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], int(code.n), cand,
-        float(noise.a), float(noise.beta), tb["packed"], tb["flips"], tb["flip_bits"], tb["flip_w"], tb["weight"],
+        ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], int(code.n), cand, dist,
+        float(SKIP_MARGIN), float(noise.a), float(noise.beta), tb["packed"], tb["flips"], tb["flip_bits"], tb["flip_w"], tb["weight"],
         tb["wlo"], tb["whi"], min(1.0, choices / code.size), float(TAIL_FLOOR), pc, pd, comp, gain, pconf)
     median, nb = gain_bins(code, choices, ds.has_inv)
     counts = cuda.to_device(np.zeros(nb + 2, np.int64), stream=stream)

@@ -7,8 +7,8 @@ then white and black, each ``float64(raw) * scale`` (`posterior._row_block`).
 
 * `normalise`: the search's float32 stack of ``levels="auto"``: ``float32(raw) * float32(scale)``
   of the code (and inverse) frames (`decoder._decode_error_rule`).
-* `split_levels`: `posterior._split_levels` (Otsu split of the sorted m samples -> on / off
-  float32 levels); its residual variance / mean level go to compact arrays that hold exactly the
+* `split_levels`: `posterior._split_levels` (two-means of the m samples by Lloyd's iterations
+  -> on / off float32 levels); its residual variance / mean level go to compact arrays that hold exactly the
   pixels `posterior._noise_from` keeps for its fit (every `step`-th pixel, row-major), so only
   those are downloaded.
 * `fit_stats`: `posterior._fit_stats` on the `posterior._steps` subgrid (downloaded whole: at
@@ -74,8 +74,9 @@ def normalise(frames, inverse, has_inv, scale, out_f, out_inv):
 
 
 @cuda.jit
-def split_levels(frames, inverse, has_inv, white, black, scale, step, out_hi, out_lo, out_s2, out_mu):
-    """`posterior._split_levels`; s2 / mu of pixel p go to out_*[p // step] where p % step == 0."""
+def split_levels(frames, inverse, has_inv, white, black, scale, iterations, step, out_hi, out_lo, out_s2, out_mu):
+    """`posterior._split_levels` (at most `iterations` Lloyd steps, `posterior.SPLIT_ITERATIONS`);
+    s2 / mu of pixel p go to out_*[p // step] where p % step == 0."""
     buf = cuda.local.array(MAX_M, np.float64)
     n = frames.shape[0]
     height = frames.shape[1]
@@ -87,34 +88,45 @@ def split_levels(frames, inverse, has_inv, white, black, scale, step, out_hi, ou
     ns = 2 * n if has_inv else n
     m = ns + 2
     _load(frames, inverse, ns, n, white, black, scale, yy, xx, buf)
-    for i in range(1, m):  # insertion sort, as on the CPU
-        v = buf[i]
-        j = i - 1
-        while j >= 0 and buf[j] > v:
-            buf[j + 1] = buf[j]
-            j -= 1
-        buf[j + 1] = v
+    # two-means by Lloyd's iterations from the calibration midpoint, as on the CPU
+    top = buf[0]
+    bottom = buf[0]
     total = 0.0
     for i in range(m):
-        total += buf[i]
-    best = -1.0
-    hi = buf[m - 1]
-    lo = buf[0]
-    split = 1
-    acc = 0.0
-    for k in range(1, m):
-        acc += buf[k - 1]
-        ml = acc / k
-        mh = (total - acc) / (m - k)
-        score = mul64(mul64(mul64(np.float64(k), np.float64(m - k)), mh - ml), mh - ml)
-        if score > best:
-            best = score
-            hi = mh
-            lo = ml
-            split = k
+        v = buf[i]
+        total += v
+        top = max(top, v)
+        bottom = min(bottom, v)
+    t = mul64(0.5, buf[ns] + buf[ns + 1]) if buf[ns] > buf[ns + 1] else mul64(0.5, top + bottom)
+    hi = top
+    lo = bottom
+    count_hi = -1
+    for _ in range(iterations):
+        sh = 0.0
+        kh = 0
+        for i in range(m):
+            if buf[i] > t:
+                sh += buf[i]
+                kh += 1
+        if kh == 0 or kh == m:  # one class: split at the mid-range instead
+            t = mul64(0.5, top + bottom)
+            sh = 0.0
+            kh = 0
+            for i in range(m):
+                if buf[i] > t:
+                    sh += buf[i]
+                    kh += 1
+            if kh == 0 or kh == m:
+                break
+        hi = sh / kh
+        lo = (total - sh) / (m - kh)
+        t = mul64(0.5, hi + lo)
+        if kh == count_hi:
+            break
+        count_hi = kh
     ssr = 0.0
     for i in range(m):
-        e = buf[i] - (lo if i < split else hi)
+        e = buf[i] - (hi if buf[i] > t else lo)
         ssr += mul64(e, e)
     if p % step == 0:
         out_s2[p // step] = ssr / (m - 2)
@@ -285,10 +297,12 @@ def _tail_mass(buf, xs, rk, count, ns, nbits, xtab, a, beta, packed, flips, flip
 
 
 @cuda.jit
-def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits, cand, a, beta, packed, flips,
-                     flip_bits, flip_w, tail_weight, wlo, whi, in_band, floor,
+def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits, cand, searched, skip_margin, a, beta,
+                     packed, flips, flip_bits, flip_w, tail_weight, wlo, whi, in_band, floor,
                      out_cand, out_dist, out_comp, out_gain, out_conf):
-    """`posterior._posterior` (without the contrast output, which the decoder does not use)."""
+    """`posterior._posterior` (without the contrast output, which the decoder does not use):
+    searched (H, W, 3) float32 the search's distances; candidates more than `skip_margin` behind
+    the best are not rescored (kept after the scored ones with distance inf)."""
     buf = cuda.local.array(MAX_M, np.float64)
     xs = cuda.local.array(MAX_M, np.float64)
     delta = cuda.local.array(MAX_M, np.float64)
@@ -296,6 +310,7 @@ def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits,
     lk = cuda.local.array(3, np.float64)
     mk = cuda.local.array(3, np.float64)
     rk = cuda.local.array(3, np.int32)
+    rest = cuda.local.array(3, np.int32)
     n = frames.shape[0]
     yy, xx, inside = pixel_of(cuda.grid(1), frames.shape[1], frames.shape[2])
     if not inside:
@@ -303,9 +318,14 @@ def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits,
     ns = 2 * n if has_inv else n
     _load(frames, inverse, ns, n, white, black, scale, yy, xx, buf)
     count = 0
+    unscored = 0
     for k in range(3):
         row = cand[yy, xx, k]
         if row < 0:
+            continue
+        if k > 0 and searched[yy, xx, k] - searched[yy, xx, 0] > skip_margin:  # float32 difference, as on the CPU
+            rest[unscored] = row
+            unscored += 1
             continue
         total, maha, c = _nll(buf, xs, row, ns, xtab, a, beta, True)
         j = count
@@ -322,6 +342,9 @@ def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits,
         if k < count:
             out_cand[yy, xx, k] = rk[k]
             out_dist[yy, xx, k] = np.float32(lk[k])
+        elif k < count + unscored:
+            out_cand[yy, xx, k] = rest[k - count]
+            out_dist[yy, xx, k] = np.float32(np.inf)
         else:
             out_cand[yy, xx, k] = -1
             out_dist[yy, xx, k] = np.float32(np.inf)
@@ -348,7 +371,12 @@ def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits,
         far += tail
         every += tail
     out_comp[yy, xx] = far / (1.0 + every)
-    out_conf[yy, xx] = np.float32((mk[1] - mk[0]) / mk[1]) if count > 1 and mk[1] > mk[0] else np.float32(0.0)
+    if count > 1:
+        out_conf[yy, xx] = np.float32((mk[1] - mk[0]) / mk[1]) if mk[1] > mk[0] else np.float32(0.0)
+    elif unscored > 0:  # d2 >= d1 + skip_margin: the ratio's lower bound
+        out_conf[yy, xx] = np.float32(skip_margin / (mk[0] + skip_margin))
+    else:
+        out_conf[yy, xx] = np.float32(0.0)
 
 
 @cuda.jit(device=True)
