@@ -147,9 +147,9 @@ def check_error_rule(name, code_name, *, h, w, inverse=False, band=True, dtype=n
     on_device = got.stats.get("rule") == "error" and "error" in dl.names and "gain_counts" in dl.names
     ok = not bad and all(noise) and 0 < nv < ref.valid.size and on_device
     ok &= bool(got.stats.get("noise_fitted")) == fitted  # fitted: >= MIN_FIT_PIXELS decoded (the binned fit ran)
-    emit(name, ok, f"differs in {bad}, noise same {noise}, valid {nv}/{ref.valid.size}, "
-                   f"max |d error| {float(np.nanmax(np.abs(ref.error - got.error))):.2e}, path {got.stats.get('path')}, "
-                   f"downloaded {dl.names}")
+    derr = float(np.nanmax(np.abs(ref.error - got.error)))
+    emit(name, ok, f"differs in {bad}, noise same {noise}, valid {nv}/{ref.valid.size}, max |d error| {derr:.2e}, "
+                   f"path {got.stats.get('path')}, downloaded {dl.names}")
 
 
 def check_error_rule_reduced(name):

@@ -72,7 +72,8 @@ KERNELS = {
     # the error rule's kernels without log / exp (posterior_kernel calls libdevice's log / exp, whose
     # own implementations hold FMAs: it is left out; its outputs agree with the CPU to float rounding)
     "posterior.normalise": (post.normalise, (u8_3, u8_3, B, F32, f32_3, f32_3)),
-    "posterior.split_levels": (post.split_levels, (u8_3, u8_3, B, u8_2, u8_2, F64, I64, I64, f32_2, f32_2, f64_1, f64_1)),
+    "posterior.split_levels": (post.split_levels, (u8_3, u8_3, B, u8_2, u8_2, F64, I64, I64, f32_2, f32_2, f64_1,
+                                                   f64_1)),
     "posterior.fit_stats": (post.fit_stats, (u8_3, u8_3, B, u8_2, u8_2, F64, f64_2, i32_3, I64, I64, f64_2, f64_2)),
     "posterior.gain_histogram": (post.gain_histogram, (f64_2, F64, I64, F64, i64_1)),
     "posterior.error_valid": (post.error_valid, (f64_2, f64_2, i32_3, f64_1, F64, I64, F32, f32_2, i32_2, i32_2, b_2)),

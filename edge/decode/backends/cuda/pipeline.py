@@ -212,7 +212,8 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     gain = buffer(buffers, "post_gain", (h, w), np.float64, stream)
     post_k.posterior_kernel[grid, post_k.TPB, stream](
         ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], int(code.n), cand, dist,
-        float(SKIP_MARGIN), float(noise.a), float(noise.beta), tb["packed"], tb["flips"], tb["flip_bits"], tb["flip_w"], tb["weight"],
+        float(SKIP_MARGIN), float(noise.a), float(noise.beta), tb["packed"], tb["flips"], tb["flip_bits"],
+        tb["flip_w"], tb["weight"],
         tb["wlo"], tb["whi"], min(1.0, choices / code.size), float(TAIL_FLOOR), pc, pd, comp, gain, pconf)
     median, nb = gain_bins(code, choices, ds.has_inv)
     counts = cuda.to_device(np.zeros(nb + 2, np.int64), stream=stream)
@@ -273,7 +274,8 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     "list+median" download candidates, confidence, column0 and eligible (the host stages
     `spatial_stage` + `valid_mask` need them) and distances only when wanted ("sgm": always).  The values of
     the fields returned do not depend on `outputs`.  stats gains ``downloaded`` (the names
-    copied back, the error rule's intermediate downloads first) and ``download_bytes``.  t0: perf_counter at the upload; stats["seconds"]
+    copied back, the error rule's intermediate downloads first) and ``download_bytes``.  t0:
+    perf_counter at the upload; stats["seconds"]
     becomes the time from it to the results on the host.  stripe: projector columns per
     codebook row (the spatial filters work in projector pixels)."""
     from ...decoder import Decoded
