@@ -9,8 +9,9 @@ then white and black, each ``float64(raw) * scale`` (`posterior._row_block`).
   of the code (and inverse) frames (`decoder._decode_error_rule`).
 * `split_levels`: `posterior._split_levels` (two-means of the m samples by Lloyd's iterations
   -> on / off float32 levels); its residual variance / mean level go to compact arrays that hold exactly the
-  pixels `posterior._noise_from` keeps for its fit (every `step`-th pixel, row-major), so only
-  those are downloaded.
+  pixels `posterior._noise_from` keeps for its fit (every `step`-th pixel, row-major, which
+  holds where every s2 is finite: frames with NaN samples would subsample differently), so
+  only those are downloaded.
 * `fit_stats`: `posterior._fit_stats` on the `posterior._steps` subgrid (downloaded whole: at
   most `posterior.FIT_PIXELS` pixels).
 * `posterior_kernel`: `posterior._posterior` (the top-3 refit NLLs re-ordered by likelihood,
