@@ -117,6 +117,77 @@ def check_decode(name, code_name, *, h, w, dtype=np.uint8, inverse=False, **opts
     emit(name, ok and int(ref.valid.sum()) > 0, detail + f" valid {int(ref.valid.sum())} path {got.stats['path']}")
 
 
+#: Tolerance of the error rule's float outputs, device vs CPU: relative 1e-6 (distances are
+#: negative log-likelihoods, error a probability); exact under the simulator (same float64 ops,
+#: the CPU's log / exp), last-bit differences of the device's log / exp on a GPU.
+ERR_RTOL, ERR_ATOL = 1e-6, 1e-7
+
+
+def check_error_rule(name, code_name, *, h, w, inverse=False, band=True, dtype=np.uint8, fitted=False, **opts):
+    """decode(..., backend="cuda") under the "error" rule (`pipeline.error_device`) against the
+    CPU's `_decode_error_rule`: column / valid / candidates identical, error / distances /
+    confidence within ERR_RTOL, the same fitted noise model; some pixels valid and some not."""
+    code = get_code(code_name)
+    cap, white, black = capture(code, h, w, dtype=dtype, inverse=inverse, band_center=4 if band else None,
+                                dark=0.1)
+    kw = dict(inverse=cap.inverse, validity="error", **opts)
+    if band:
+        kw.update(min_disparity=0, max_disparity=8)
+    ref = decode(cap.frames, white, black, code, backend="cpu", **kw)
+    with Downloads() as dl:
+        got = decode(cap.frames, white, black, code, backend="cuda", **kw)
+    bad = [f for f in ("column", "valid", "candidates") if not np.array_equal(getattr(ref, f), getattr(got, f))]
+    for f in ("error", "distances", "confidence"):
+        a, b = getattr(ref, f), getattr(got, f)
+        if a is None or b is None or a.shape != b.shape or not np.allclose(a, b, rtol=ERR_RTOL, atol=ERR_ATOL,
+                                                                           equal_nan=True):
+            bad.append(f)
+    noise = [ref.stats.get(k) == got.stats.get(k) for k in ("noise_a", "noise_beta", "noise_fitted")]
+    nv = int(ref.valid.sum())
+    on_device = got.stats.get("rule") == "error" and "error" in dl.names and "gain_counts" in dl.names
+    ok = not bad and all(noise) and 0 < nv < ref.valid.size and on_device
+    ok &= bool(got.stats.get("noise_fitted")) == fitted  # fitted: >= MIN_FIT_PIXELS decoded (the binned fit ran)
+    derr = float(np.nanmax(np.abs(ref.error - got.error)))
+    emit(name, ok, f"differs in {bad}, noise same {noise}, valid {nv}/{ref.valid.size}, max |d error| {derr:.2e}, "
+                   f"path {got.stats.get('path')}, downloaded {dl.names}")
+
+
+def check_error_rule_reduced(name):
+    """The reduced download under the "error" rule (`pipeline.decode_whole` and `Staging.decode`
+    with the runtime's `HOST_OUTPUTS`): column, confidence, valid and error come back with the
+    CPU's values; candidates / distances stay on the device; the other downloads are the small
+    noise-fit / histogram arrays only (counted at the `to_host` seam, = stats download_bytes)."""
+    from edge.decode.backends.cuda.pipeline import HOST_OUTPUTS, decode_whole
+    from edge.decode.backends.cuda.staging import Staging
+    from edge.decode.settings import DEFAULT_SETTINGS
+
+    code = get_code("ecc-22-10")
+    h, w = 3, 24
+    cap, white, black = capture(code, h, w, band_center=4, dark=0.1)
+    s = DEFAULT_SETTINGS.replace(validity="error", backend="cuda")
+    facts = dict(min_disparity=0, max_disparity=8)
+    ref = decode(cap.frames, white, black, code, settings=s.replace(backend="cpu"), **facts)
+    details, ok = [], int(ref.valid.sum()) > 0
+    small = {"split_s2", "split_mu", "fit_s2", "fit_mu", "gain_counts", "split_on", "split_off"}
+    for label in ("whole", "staged"):
+        with Downloads() as dl:
+            if label == "whole":
+                got = decode_whole(cap.frames, white, black, code, s, outputs=HOST_OUTPUTS, **facts)
+            else:
+                stage = Staging(code.n, (h, w), cap.frames.dtype)
+                got = stage.decode_stack(cap.frames, white, black, code, s, outputs=HOST_OUTPUTS, **facts)
+        results = [k for k in dl.names if k not in small]
+        same = all(np.array_equal(getattr(ref, f), getattr(got, f)) for f in ("column", "valid"))
+        close = all(np.allclose(getattr(ref, f), getattr(got, f), rtol=ERR_RTOL, atol=ERR_ATOL)
+                    for f in ("confidence", "error"))
+        ok &= same and close and sorted(results) == sorted(["column", "confidence", "valid", "error"])
+        ok &= set(dl.names) - set(results) <= small and "gain_counts" in dl.names
+        ok &= got.candidates is None and got.distances is None and got.stats.get("rule") == "error"
+        ok &= dl.bytes == got.stats["download_bytes"]
+        details.append(f"{label}: downloaded {dl.names} ({dl.bytes} B), same {same}, close {close}")
+    emit(name, ok, "; ".join(details) + f"; valid {int(ref.valid.sum())}")
+
+
 def check_validity(name, *, h, w):
     """The device valid mask against validity.eligible_column / spatial_support / final_mask on
     crafted columns (clusters, near ties of the median, even voter counts)."""
@@ -640,6 +711,23 @@ def main() -> int:
                                                           dtype=np.uint16, method="hard", levels="refit")),
         ("decode-soft-inverse-nocheck", lambda: check_decode("decode-soft-inverse-nocheck", "gray-10", h=b[0], w=b[1],
                                                              inverse=True, spatial_check=False)),
+        ("error-rule-ecc-22-10-band", lambda: check_error_rule("error-rule-ecc-22-10-band", "ecc-22-10", h=b[0],
+                                                               w=b[1])),
+        ("error-rule-ecc-22-10-all", lambda: check_error_rule("error-rule-ecc-22-10-all", "ecc-22-10", h=s[0], w=s[1],
+                                                              band=False)),
+        ("error-rule-gray-10-inverse-band", lambda: check_error_rule("error-rule-gray-10-inverse-band", "gray-10",
+                                                                     h=b[0], w=b[1], inverse=True)),
+        ("error-rule-ecc-22-10-inverse-all", lambda: check_error_rule(
+            "error-rule-ecc-22-10-inverse-all", "ecc-22-10", h=s[0], w=s[1], inverse=True, band=False)),
+        ("error-rule-gray-10-uint16-median", lambda: check_error_rule(
+            "error-rule-gray-10-uint16-median", "gray-10", h=b[0], w=b[1], dtype=np.uint16, method="list+median")),
+        ("error-rule-ecc-22-10-hard-calibration", lambda: check_error_rule(
+            "error-rule-ecc-22-10-hard-calibration", "ecc-22-10", h=b[0], w=b[1], method="hard", levels="calibration")),
+        ("error-rule-ecc-22-10-fitted", lambda: check_error_rule("error-rule-ecc-22-10-fitted", "ecc-22-10", h=24,
+                                                                 w=24, fitted=True)),
+        ("error-rule-reduced-download", lambda: check_error_rule_reduced("error-rule-reduced-download")),
+        ("error-rule-ecc-22-10-sgm", lambda: check_error_rule("error-rule-ecc-22-10-sgm", "ecc-22-10", h=b[0], w=b[1],
+                                                              method="sgm")),
         ("staging", lambda: check_staging("staging", "ecc-22-10", h=b[0], w=b[1])),
         ("runtime-pipeline", lambda: check_runtime_pipeline("runtime-pipeline")),
         ("reduced-download", lambda: check_reduced_download("reduced-download")),

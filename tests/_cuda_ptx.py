@@ -18,8 +18,8 @@ from numba import cuda, types, typeof  # noqa: E402
 
 import importlib  # noqa: E402
 
-hard, nary, refit, soft, validity = (importlib.import_module(f"edge.decode.backends.cuda.{m}")
-                                     for m in ("hard", "nary", "refit", "soft", "validity"))
+hard, nary, post, refit, soft, validity = (importlib.import_module(f"edge.decode.backends.cuda.{m}")
+                                           for m in ("hard", "nary", "posterior", "refit", "soft", "validity"))
 
 CC = (9, 0)
 
@@ -51,6 +51,8 @@ i32_3 = typeof(np.zeros((1, 1, 1), np.int32))
 f32_3o = typeof(np.zeros((1, 1, 3), np.float32))
 f32_1 = typeof(np.zeros(1, np.float32))
 b_2 = typeof(np.zeros((1, 1), np.bool_))
+f64_2 = typeof(np.zeros((1, 1), np.float64))
+u64_1 = typeof(np.zeros(1, np.uint64))
 B, F64, I64, F32 = types.boolean, types.float64, types.int64, types.float32
 
 SEARCH = (u8_3, u8_3, B, u8_2, u8_2, F64, I64, F64, F64, F64, I64, f64_1, f64_3, i64_1, I64)
@@ -67,6 +69,14 @@ KERNELS = {
     "refit.refine_levels": (refit.refine_levels, (f32_3, f32_2, f32_2, f32_2, f32_1, f32_1, i32_3, f32_2, f32_2)),
     "validity.eligible_column": (validity.eligible_column, (i32_3, u8_2, u8_2, F32, F32, i32_2, b_2)),
     "validity.support_mask": (validity.support_mask, (i32_2, f32_2, b_2, B, F64, I64, I64, F32, F32, i32_2, b_2)),
+    # the error rule's kernels without log / exp (posterior_kernel calls libdevice's log / exp, whose
+    # own implementations hold FMAs: it is left out; its outputs agree with the CPU to float rounding)
+    "posterior.normalise": (post.normalise, (u8_3, u8_3, B, F32, f32_3, f32_3)),
+    "posterior.split_levels": (post.split_levels, (u8_3, u8_3, B, u8_2, u8_2, F64, I64, I64, f32_2, f32_2, f64_1,
+                                                   f64_1)),
+    "posterior.fit_stats": (post.fit_stats, (u8_3, u8_3, B, u8_2, u8_2, F64, f64_2, i32_3, I64, I64, f64_2, f64_2)),
+    "posterior.gain_histogram": (post.gain_histogram, (f64_2, F64, I64, F64, i64_1)),
+    "posterior.error_valid": (post.error_valid, (f64_2, f64_2, i32_3, f64_1, F64, I64, F32, f32_2, i32_2, i32_2, b_2)),
 }
 
 

@@ -66,6 +66,10 @@ CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inverse"
           "soft-nary3-6", "hard-metric-search-gray-10", "hard-ecc-22-10", "hard-ecc-22-10-inverse-band", "hard-gray-10",
           "validity", "refit-kernels-ecc-22-10", "refit-kernels-rs16-15-4", "decode-soft", "decode-hard",
           "decode-list+median", "decode-soft-refit", "decode-hard-refit-uint16", "decode-soft-inverse-nocheck",
+          "error-rule-ecc-22-10-band", "error-rule-ecc-22-10-all", "error-rule-gray-10-inverse-band",
+          "error-rule-ecc-22-10-inverse-all", "error-rule-gray-10-uint16-median",
+          "error-rule-ecc-22-10-hard-calibration",
+          "error-rule-ecc-22-10-fitted", "error-rule-reduced-download", "error-rule-ecc-22-10-sgm",
           "staging", "runtime-pipeline", "reduced-download", "staged-frames", "staged-fallback", "staged-threads",
           "service-staged", "runtime-error-rule"]
 

@@ -134,7 +134,7 @@ def decode(
     methods, metrics and the valid mask.
     """
     s = (DEFAULT_SETTINGS if settings is None else settings).replace(**options)
-    if s.backend != "cpu" and s.rule(inverse is not None) == "confidence":  # device backends (edge.decode.backends.cuda) run levels, search and mask whole
+    if s.backend != "cpu":  # device backends (edge.decode.backends.cuda) run levels, search, validity rule whole
         whole = getattr(get_backend(s.backend), "decode_whole", None)
         if whole is not None:
             return whole(frames, white, black, code, s, inverse=inverse, min_disparity=min_disparity,

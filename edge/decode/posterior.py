@@ -688,21 +688,33 @@ def not_lit_probability(gain: np.ndarray, code: Code, rows: int, *, inverse: boo
     total = int(ok.sum())
     if total == 0:
         return out
-    null = _null(code, rows, inverse)
+    median, nb = gain_bins(code, rows, inverse)
     g = np.maximum(gain[ok], 0.0)
-    median = float(null[0][null[0].size // 2])
-    pi0 = min(1.0, float((g < median).sum()) / (0.5 * total))
-    # bins up to where the null's survival is negligible (beyond: 0)
+    idx = np.minimum((np.sqrt(g) / GAIN_BIN).astype(np.int64), nb)
+    counts = np.bincount(idx, minlength=nb + 1)[:nb]
+    out[ok] = fdr_lookup(counts, total, int((g < median).sum()), code, rows, inverse)[idx]
+    return out
+
+
+def gain_bins(code: Code, rows: int, inverse: bool = False) -> tuple[float, int]:
+    """(null median, nb) of `not_lit_probability`: a gain g >= 0 falls in bin
+    ``min(int(sqrt(g) / GAIN_BIN), nb)`` (bin nb: beyond where the null's survival is negligible);
+    pi0 counts the gains below the null median (a seam for device backends that bin on the device)."""
+    null = _null(code, rows, inverse)
     x_end = null[1] + np.log(1e12) / null[2]
-    nb = int(np.ceil(np.sqrt(x_end) / GAIN_BIN)) + 1
+    return float(null[0][null[0].size // 2]), int(np.ceil(np.sqrt(x_end) / GAIN_BIN)) + 1
+
+
+def fdr_lookup(counts: np.ndarray, total: int, below: int, code: Code, rows: int, inverse: bool = False) -> np.ndarray:
+    """(nb + 1,) float64 P(not lit) per gain bin of `gain_bins` (the last: 0), from the (nb,)
+    counts of the finite gains in bins 0..nb-1, their number `total` and the number `below` the
+    null median (`not_lit_probability`'s two-group model)."""
+    null = _null(code, rows, inverse)
+    _, nb = gain_bins(code, rows, inverse)
+    pi0 = min(1.0, float(below) / (0.5 * total))
     edges_u = np.arange(nb + 1) * GAIN_BIN
     s0 = _null_survival(edges_u ** 2, null)
     p0 = np.maximum(s0[:-1] - s0[1:], 0.0)
-    u = np.sqrt(g)
-    idx = np.minimum((u / GAIN_BIN).astype(np.int64), nb)
-    counts = np.bincount(idx, minlength=nb + 1)[:nb].astype(np.float64)
-    fdr = np.minimum(1.0, pi0 * total * p0 / np.maximum(counts, 1.0))
+    fdr = np.minimum(1.0, pi0 * total * p0 / np.maximum(np.asarray(counts, np.float64)[:nb], 1.0))
     fdr = np.maximum.accumulate(fdr[::-1])[::-1]  # non-increasing in u (the conservative envelope)
-    lookup = np.append(fdr, 0.0)
-    out[ok] = lookup[idx]
-    return out
+    return np.append(fdr, 0.0)

@@ -14,7 +14,8 @@
    were captured (the capture hook `on_frame`, see `DepthPipeline.__init__`) and the decode
    reads that staged set; a stack that was not staged is uploaded whole; either way only
    column, confidence and the valid mask come back to the host, with the same values (under
-   the "error" rule the device runs the candidate search and the host the posterior);
+   the "error" rule `decode` runs the whole error rule on the device, without frame staging
+   here, and brings back the whole `Decoded`);
 4. EDC (when ``edc.rounds`` > 0): `edge.decode.check` error map and the adaptive loop
    (`edge.edc`), which asks ``masked_capture`` for the next masked frames;
 5. column -> disparity -> depth (`edge.runtime.depth.column_to_depth_mm`, profile geometry).
@@ -89,8 +90,8 @@ class DepthPipeline:
         self.stager = None
         #: the validity rule of the service's stacks (code frames, white, black: no inverse frames)
         self.rule = self.settings.rule(False)
-        # the device's whole decode (and so the staged one) is the "confidence" rule's; under the
-        # "error" rule `decode` runs the candidate search on the device and the posterior here
+        # frames are staged under the "confidence" rule only; under the "error" rule `decode`
+        # runs the error rule on the device from a whole-stack upload (staging it: a follow-up)
         if (self.rule == "confidence" and self.settings.backend != "cpu"
                 and get_backend(self.settings.backend).__name__.endswith(".cuda")):
             import functools

@@ -1,5 +1,6 @@
-"""The CUDA backend (numba-cuda): the exact top-3 search, hard decoding, the level refit and the
-valid mask on an NVIDIA GPU, with the CPU backend's results bit for bit.
+"""The CUDA backend (numba-cuda): the exact top-3 search, hard decoding, the level refit, the
+valid mask and the "error" validity rule on an NVIDIA GPU, with the CPU backend's results (bit
+for bit where the CPU path is exact; the error rule's probabilities to float rounding on a GPU).
 
 Implements the backend seam of `edge.decode.backends` (``search``, ``hard``) plus
 ``decode_whole`` (levels, search and valid mask on the device, used by `edge.decode.decode`
@@ -10,7 +11,8 @@ buffers for stacks that arrive whole).
 
 Files by algorithm: `cost` (the shared device-side cost model), `soft` (top-3 over all
 codewords / over a disparity band), `nary` (N-ary codes), `hard` (syndrome decoding),
-`refit` (level self-calibration), `validity` (valid mask, spatial support), `device` (device
+`refit` (level self-calibration), `validity` (valid mask, spatial support), `posterior` (the
+"error" validity rule: split levels, noise-fit stats, posterior, gain histogram), `device` (device
 stacks, tables, launches), `pipeline` (whole decodes on the device), `staging`.
 
 Needs the ``numba-cuda`` package (``pip install 'edge[gpu]'``); importing this module raises

@@ -7,7 +7,10 @@ fields asked for, each array once through `to_host`; the runtime asks for `HOST_
 Methods "soft" / "hard" get their valid mask on the device (`validity`); "list" / "median" /
 "list+median" take the device's candidates, confidence and eligibility to the host filters of
 `edge.decode.spatial` (sequential along rows, as the CPU backend does).  ``levels="refit"`` follows
-`edge.decode.decode_refined` (one refit iteration) with `refit`'s kernels.
+`edge.decode.decode_refined` (one refit iteration) with `refit`'s kernels.  Under the "error"
+validity rule (`DecodeSettings.rule`) `decode_device` hands over to `error_device`
+(`edge.decode.decoder._decode_error_rule` with `posterior`'s kernels); `finish` then also
+downloads ``error`` (the `Decoded` field).
 """
 
 from __future__ import annotations
@@ -16,11 +19,14 @@ import time
 from typing import Any
 
 import numpy as np
+from numba import cuda
 
 from ....codes import Code
+from ... import kernels
 from ...inputs import validate
 from ...search import METRICS, band_args, check_call
 from ...settings import DecodeSettings
+from . import posterior as post_k
 from . import refit as refit_k
 from . import validity as valid_k
 from .device import DeviceStack, _blocks, _dummy, buffer, device_tables, hard_device, search_device, upload
@@ -71,8 +77,12 @@ def decode_device(ds: DeviceStack, code: Code, s: DecodeSettings, *, columns: in
     Returns device arrays: candidates (H, W, 3) int32, distances (H, W, 3) float32, confidence
     (H, W) float32, column0 (H, W) int32 (best candidate), eligible (H, W) bool, and for "soft" /
     "hard" column (H, W) int32 (-1 where invalid) and valid (H, W) bool; plus stats.
-    buffers: a dict that keeps the device arrays between calls (no allocation per stack)."""
+    buffers: a dict that keeps the device arrays between calls (no allocation per stack).
+    Under the "error" validity rule (``s.rule(...) == "error"``): `error_device`'s dict instead."""
     metric = METRICS[s.metric]
+    if s.rule(ds.has_inv) == "error":
+        return error_device(ds, code, s, metric, columns=columns, band=band, stripe=stripe, stream=stream,
+                            buffers=buffers)
     if s.levels == "refit":
         ds = refit_stack(ds, code, s, metric, columns=columns, band=band, stripe=stripe, stream=stream,
                          buffers=buffers)
@@ -93,6 +103,137 @@ def decode_device(ds: DeviceStack, code: Code, s: DecodeSettings, *, columns: in
         valid_k.support_mask[grid, valid_k.TPB, stream](
             col0, conf, elig, bool(s.spatial_check), float(s.t_high), 3, 1, np.float32(s.min_confidence),
             np.float32(s.t_low), column, valid)
+        out["column"], out["valid"] = column, valid
+    return out
+
+
+_POST_TABLES: dict[tuple, dict] = {}
+
+
+def posterior_tables(code: Code, inverse: bool) -> dict:
+    """The error rule's code tables on the device (uploaded once per code and inverse flag):
+    xtab (`posterior._xtab`, float64 symbols / (q - 1), with inverse frames their 1 - x too) and
+    the tail-mass tables of `posterior._flips` (packed, flips, flip_bits, flip_w on the device;
+    weight, wlo, whi, nflips on the host)."""
+    from ...posterior import _flips, _xtab
+
+    key = (code.name, code.n, code.q, code.size, bool(inverse))
+    t = _POST_TABLES.get(key)
+    if t is None:
+        packed, flips, flip_bits, flip_w, weight, wlo, whi = _flips(code)
+        t = {"xtab": cuda.to_device(_xtab(code, inverse)), "packed": cuda.to_device(packed),
+             "flips": cuda.to_device(flips), "flip_bits": cuda.to_device(np.ascontiguousarray(flip_bits)),
+             "flip_w": cuda.to_device(flip_w), "weight": float(weight), "wlo": int(wlo), "whi": int(whi)}
+        _POST_TABLES[key] = t
+    return t
+
+
+def _fetch(name: str, array: Any, stream: Any, log: list) -> np.ndarray:
+    """A download the host stages of the error rule need now (`to_host`, then the stream)."""
+    out = to_host(name, array, stream)
+    if stream != 0:
+        stream.synchronize()
+    log.append((name, int(out.nbytes)))
+    return out
+
+
+def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *, columns: int,
+                 band: tuple[bool, int, int], stripe: int, stream: Any = 0,
+                 buffers: dict | None = None) -> dict[str, Any]:
+    """`edge.decode.decoder._decode_error_rule` with the frames on the device (`posterior`'s kernels).
+
+    Levels: "auto" splits each pixel's samples on the device (`posterior.split_levels` +
+    `normalise`: the float32 stack the search reads); "refit" is `refit_stack`; otherwise the
+    calibration levels.  Then the search, the subgrid fit stats (the host fits the noise model
+    from them: `edge.decode.posterior._noise_from`), the posterior kernel, the gain histogram
+    (atomics; the host turns its counts into the not-lit lookup, `posterior.fdr_lookup`) and
+    error / valid.  Host <-> device traffic besides the results: the split's compact fit stats
+    (at most `FIT_PIXELS` pixels), the on / off levels where the ML search needs the CPU's
+    per-pixel logs (no inverse frames), the subgrid fit stats, nb + 2 histogram counters down
+    and the (nb + 1,) lookup up.  Returns device arrays candidates / distances (the posterior's:
+    re-ordered by likelihood, negative log-likelihoods), confidence, error, column0, column /
+    valid (methods "soft" / "hard"; the others get them on the host in `finish`), ``rule``
+    "error", stats (the search's + noise_a, noise_beta, noise_fitted, rule, levels, and
+    ``side_downloads``: (name, bytes) of the intermediate downloads)."""
+    from ...decoder import band_choices
+    from ...posterior import (FIT_PIXELS, GAIN_BIN, SKIP_MARGIN, SPLIT_ITERATIONS, TAIL_FLOOR, _noise_from, _steps,
+                              fdr_lookup, gain_bins)
+
+    h, w = ds.shape
+    n = int(ds.frames.shape[0])
+    ns = 2 * n if ds.has_inv else n
+    grid = _blocks(h * w, post_k.TPB)
+    scale32 = np.float32(ds.scale)
+    scale = np.float64(scale32)  # the CPU's error rule works with float(float32(scale))
+    like = np.empty((ns, 1, 1), ds.dtype)  # `_noise_from` reads the samples' dtype and count only
+    side: list = []
+    s_in = s
+    if s.levels == "refit":
+        searched = refit_stack(ds, code, s, metric, columns=columns, band=band, stripe=stripe, stream=stream,
+                               buffers=buffers)
+    elif s.levels == "auto":
+        step = -(-(h * w) // FIT_PIXELS) if h * w > FIT_PIXELS else 1
+        k = -(-(h * w) // step)
+        on = buffer(buffers, "split_on", (h, w), np.float32, stream)
+        off = buffer(buffers, "split_off", (h, w), np.float32, stream)
+        s2 = buffer(buffers, "split_s2", (k,), np.float64, stream)
+        mu = buffer(buffers, "split_mu", (k,), np.float64, stream)
+        post_k.split_levels[grid, post_k.TPB, stream](ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale,
+                                                      int(SPLIT_ITERATIONS), step, on, off, s2, mu)
+        f32 = buffer(buffers, "split_frames", (n, h, w), np.float32, stream)
+        inv32 = (buffer(buffers, "split_inverse", (n, h, w), np.float32, stream) if ds.has_inv
+                 else _dummy("inv32", (1, 1, 1), np.float32))
+        post_k.normalise[grid, post_k.TPB, stream](ds.frames, ds.inverse, ds.has_inv, scale32, f32, inv32)
+        first = _noise_from(_fetch("split_s2", s2, stream, side), _fetch("split_mu", mu, stream, side), like,
+                            float(scale), (s.sigma_r, s.sigma_s))
+        host_on = host_off = None
+        if s.method != "hard" and metric == kernels.METRIC_ML and not ds.has_inv:  # the CPU's per-pixel logs
+            host_on, host_off = _fetch("split_on", on, stream, side), _fetch("split_off", off, stream, side)
+        searched = DeviceStack(frames=f32, inverse=inv32, has_inv=ds.has_inv, white=on, black=off, scale=1.0,
+                               dtype=np.dtype(np.float32), host_white=host_on, host_black=host_off)
+        s = s.replace(sigma_r=float(np.sqrt(first.a)), sigma_s=float(np.sqrt(first.beta)))
+    else:
+        searched = ds
+    cand, dist, _, st = _search(searched, code, s.method, s, metric, columns, band, stripe, stream, buffers)
+    tb = posterior_tables(code, ds.has_inv)
+    sy, sx = _steps(h, w)
+    rows, cols = -(-h // sy), -(-w // sx)
+    fs2 = buffer(buffers, "fit_s2", (rows, cols), np.float64, stream)
+    fmu = buffer(buffers, "fit_mu", (rows, cols), np.float64, stream)
+    post_k.fit_stats[_blocks(rows * cols, post_k.TPB), post_k.TPB, stream](
+        ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], cand, sy, sx, fs2, fmu)
+    noise = _noise_from(_fetch("fit_s2", fs2, stream, side), _fetch("fit_mu", fmu, stream, side), like,
+                        float(scale), (s.sigma_r, s.sigma_s))
+    choices = band_choices(columns, band, stripe)
+    pc = buffer(buffers, "post_candidates", (h, w, 3), np.int32, stream)
+    pd = buffer(buffers, "post_distances", (h, w, 3), np.float32, stream)
+    pconf = buffer(buffers, "post_confidence", (h, w), np.float32, stream)
+    comp = buffer(buffers, "post_competitors", (h, w), np.float64, stream)
+    gain = buffer(buffers, "post_gain", (h, w), np.float64, stream)
+    post_k.posterior_kernel[grid, post_k.TPB, stream](
+        ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], int(code.n), cand, dist,
+        float(SKIP_MARGIN), float(noise.a), float(noise.beta), tb["packed"], tb["flips"], tb["flip_bits"],
+        tb["flip_w"], tb["weight"],
+        tb["wlo"], tb["whi"], min(1.0, choices / code.size), float(TAIL_FLOOR), pc, pd, comp, gain, pconf)
+    median, nb = gain_bins(code, choices, ds.has_inv)
+    counts = cuda.to_device(np.zeros(nb + 2, np.int64), stream=stream)
+    post_k.gain_histogram[grid, post_k.TPB, stream](gain, float(GAIN_BIN), nb, float(median), counts)
+    c = _fetch("gain_counts", counts, stream, side)
+    total = int(c[nb])
+    lookup = (np.zeros(nb + 1) if total == 0
+              else fdr_lookup(c[:nb], total, int(c[nb + 1]), code, choices, ds.has_inv))
+    err = buffer(buffers, "error", (h, w), np.float32, stream)
+    col0 = buffer(buffers, "column0", (h, w), np.int32, stream)
+    column = buffer(buffers, "column", (h, w), np.int32, stream)
+    valid = buffer(buffers, "valid", (h, w), np.bool_, stream)
+    post_k.error_valid[grid, post_k.TPB, stream](gain, comp, pc, cuda.to_device(lookup, stream=stream),
+                                                 float(GAIN_BIN), nb, np.float32(s.max_error), err, col0, column,
+                                                 valid)
+    st = dict(st, noise_a=noise.a, noise_beta=noise.beta, noise_fitted=noise.fitted, rule="error",
+              levels=s_in.levels, side_downloads=side)
+    out = {"rule": "error", "candidates": pc, "distances": pd, "confidence": pconf, "error": err, "column0": col0,
+           "stats": st, "choices": choices}
+    if s.method in ("soft", "hard"):
         out["column"], out["valid"] = column, valid
     return out
 
@@ -127,11 +268,14 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     outputs: the `Decoded` fields wanted on the host (default all of `FIELDS`; the runtime asks
     for `HOST_OUTPUTS`).  Fields not in `outputs` are None in the returned `Decoded`.  What is
     copied back (each array once, through `to_host`): methods "soft" / "hard" download exactly
-    the wanted fields (column, valid come from the device's mask); "list" / "median" /
+    the wanted fields (column, valid come from the device's mask; under the "error" rule
+    ``error`` too, always, and the "list" / "median" methods take candidates, confidence and
+    error to the host filters); confidence-rule "list" / "median" /
     "list+median" download candidates, confidence, column0 and eligible (the host stages
     `spatial_stage` + `valid_mask` need them) and distances only when wanted ("sgm": always).  The values of
     the fields returned do not depend on `outputs`.  stats gains ``downloaded`` (the names
-    copied back) and ``download_bytes``.  t0: perf_counter at the upload; stats["seconds"]
+    copied back, the error rule's intermediate downloads first) and ``download_bytes``.  t0:
+    perf_counter at the upload; stats["seconds"]
     becomes the time from it to the results on the host.  stripe: projector columns per
     codebook row (the spatial filters work in projector pixels)."""
     from ...decoder import Decoded
@@ -139,28 +283,50 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     from ...validity import valid_mask
 
     want = _outputs(outputs)
+    rule = out.get("rule", "confidence")
     if s.method in ("soft", "hard"):
         names = [f for f in FIELDS if f in want]
+    elif rule == "error":
+        names = ["candidates", "confidence"] + (["distances"] if "distances" in want or s.method == "sgm" else [])
     else:
         names = ["candidates", "confidence", "column0", "eligible"] + (
             ["distances"] if "distances" in want or s.method == "sgm" else [])
+    if rule == "error":
+        names.append("error")
     host = {k: to_host(k, out[k], stream) for k in names}
     if stream != 0:
         stream.synchronize()
     st = out["stats"]
     if t0 is not None:
         st["seconds"] = time.perf_counter() - t0
-    st["downloaded"] = list(names)
-    st["download_bytes"] = int(sum(a.nbytes for a in host.values()))
+    side = st.pop("side_downloads", [])
+    st["downloaded"] = [k for k, _ in side] + list(names)
+    st["download_bytes"] = int(sum(a.nbytes for a in host.values())) + int(sum(b for _, b in side))
     if s.method in ("soft", "hard"):
         column, valid = host.get("column"), host.get("valid")
+    elif rule == "error" and s.method == "sgm":
+        # `_decode_error_rule`'s semi-global regularisation of the posterior, on the host
+        from ...sgm import from_posterior
+
+        reg = from_posterior(host["candidates"], host["distances"], host["error"], stripe=stripe,
+                             max_error=s.max_error, choices=out["choices"])
+        column, valid = reg.column, reg.valid
+        host.update(candidates=reg.candidates, distances=reg.distances, error=reg.error)
+    elif rule == "error":
+        # `_decode_error_rule`'s spatial methods on P(right), on the host (as the CPU backend)
+        ok = s.max_error
+        column0 = np.ascontiguousarray(host["candidates"][..., 0])
+        spatial = spatial_stage(s.replace(t_high=1.0 - ok, t_low=1.0 - ok), host["candidates"],
+                                (1.0 - host["error"]).astype(np.float32), column0, column0 >= 0, stripe=stripe)
+        column = np.where(spatial.valid, spatial.column, -1).astype(np.int32)
+        valid = column >= 0
     else:
         spatial = spatial_stage(s, host["candidates"], host["confidence"], host["column0"], host["eligible"],
                                 stripe=stripe, distances=host.get("distances"), choices=out.get("choices"))
         column, valid = valid_mask(spatial, host["confidence"], host["eligible"], s)
     got = {"column": column, "valid": valid, "confidence": host.get("confidence"),
            "candidates": host.get("candidates"), "distances": host.get("distances")}
-    return Decoded(**{f: (got[f] if f in want else None) for f in FIELDS}, stats=st)
+    return Decoded(**{f: (got[f] if f in want else None) for f in FIELDS}, stats=st, error=host.get("error"))
 
 
 def decode_whole(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code, settings: DecodeSettings, *,

@@ -1,0 +1,429 @@
+"""The "error" validity rule's per-pixel stages on the GPU (`edge.decode.posterior`), float64.
+
+One thread per pixel (`fit_stats`: per pixel of the noise fit's subgrid), each the CPU kernel's
+arithmetic in the same order, every product through `cost.mul64` (no fused multiply-add).
+The samples of a pixel are its n code frames, then (with inverse frames) its n inverse frames,
+then white and black, each ``float64(raw) * scale`` (`posterior._row_block`).
+
+* `normalise`: the search's float32 stack of ``levels="auto"``: ``float32(raw) * float32(scale)``
+  of the code (and inverse) frames (`decoder._decode_error_rule`).
+* `split_levels`: `posterior._split_levels` (two-means of the m samples by Lloyd's iterations
+  -> on / off float32 levels); its residual variance / mean level go to compact arrays that hold exactly the
+  pixels `posterior._noise_from` keeps for its fit (every `step`-th pixel, row-major, which
+  holds where every s2 is finite: frames with NaN samples would subsample differently), so
+  only those are downloaded.
+* `fit_stats`: `posterior._fit_stats` on the `posterior._steps` subgrid (downloaded whole: at
+  most `posterior.FIT_PIXELS` pixels).
+* `posterior_kernel`: `posterior._posterior` (the top-3 refit NLLs re-ordered by likelihood,
+  the flat hypothesis' gain ``L_0 - L_1``, the competitor mass with `_tail_mass`); writes
+  candidates, distances, confidence, the gain and the competitor probability.
+* `gain_histogram`: the counts of `posterior.not_lit_probability` with atomics (bins of
+  `posterior.gain_bins`, the finite gains, those below the null median): the host turns the
+  nb + 2 counters into the (nb + 1,) lookup of `posterior.fdr_lookup` (the gain array stays on
+  the device).
+* `error_valid`: P(wrong) ``1 - (1 - P(not lit)) (1 - P(confused))`` (float32), column0 and,
+  for methods "soft" / "hard", ``valid = error < max_error``.
+
+Logs and exponentials are the device's (`math.log` / `math.exp`): under the simulator they are
+the CPU's, on a GPU they may differ in the last bit, so error / distances agree to float
+rounding there (columns, candidates and validity are equal except at exact ties).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import cuda
+
+from .cost import MAX_N, mul64, pixel_of
+
+TPB = 128
+#: Most samples per pixel: 2 * MAX_N code + inverse frames, white, black.
+MAX_M = 2 * MAX_N + 2
+_CLIP = 700.0
+
+
+@cuda.jit(device=True)
+def _sample(frames, inverse, n, yy, xx, i):
+    """Raw sample i (0..2n-1 with inverse frames: code frames, then inverse) of pixel (yy, xx)."""
+    if i < n:
+        return frames[i, yy, xx]
+    return inverse[i - n, yy, xx]
+
+
+@cuda.jit(device=True)
+def _load(frames, inverse, ns, n, white, black, scale, yy, xx, buf):
+    """buf[0:ns + 2] = the pixel's normalised samples (ns = n or 2n), white, black."""
+    for i in range(ns):
+        buf[i] = mul64(_sample(frames, inverse, n, yy, xx, i), scale)
+    buf[ns] = mul64(white[yy, xx], scale)
+    buf[ns + 1] = mul64(black[yy, xx], scale)
+
+
+@cuda.jit
+def normalise(frames, inverse, has_inv, scale, out_f, out_inv):
+    """out_f (n, H, W) float32 = float32(frames) * scale (float32); out_inv the same for inverse."""
+    n = frames.shape[0]
+    yy, xx, inside = pixel_of(cuda.grid(1), frames.shape[1], frames.shape[2])
+    if not inside:
+        return
+    for i in range(n):
+        out_f[i, yy, xx] = np.float32(np.float32(frames[i, yy, xx]) * scale)
+        if has_inv:
+            out_inv[i, yy, xx] = np.float32(np.float32(inverse[i, yy, xx]) * scale)
+
+
+@cuda.jit
+def split_levels(frames, inverse, has_inv, white, black, scale, iterations, step, out_hi, out_lo, out_s2, out_mu):
+    """`posterior._split_levels` (at most `iterations` Lloyd steps, `posterior.SPLIT_ITERATIONS`);
+    s2 / mu of pixel p go to out_*[p // step] where p % step == 0."""
+    buf = cuda.local.array(MAX_M, np.float64)
+    n = frames.shape[0]
+    height = frames.shape[1]
+    width = frames.shape[2]
+    p = cuda.grid(1)
+    yy, xx, inside = pixel_of(p, height, width)
+    if not inside:
+        return
+    ns = 2 * n if has_inv else n
+    m = ns + 2
+    _load(frames, inverse, ns, n, white, black, scale, yy, xx, buf)
+    # two-means by Lloyd's iterations from the calibration midpoint, as on the CPU
+    top = buf[0]
+    bottom = buf[0]
+    total = 0.0
+    for i in range(m):
+        v = buf[i]
+        total += v
+        top = max(top, v)
+        bottom = min(bottom, v)
+    t = mul64(0.5, buf[ns] + buf[ns + 1]) if buf[ns] > buf[ns + 1] else mul64(0.5, top + bottom)
+    hi = top
+    lo = bottom
+    count_hi = -1
+    for _ in range(iterations):
+        sh = 0.0
+        kh = 0
+        for i in range(m):
+            if buf[i] > t:
+                sh += buf[i]
+                kh += 1
+        if kh == 0 or kh == m:  # one class: split at the mid-range instead
+            t = mul64(0.5, top + bottom)
+            sh = 0.0
+            kh = 0
+            for i in range(m):
+                if buf[i] > t:
+                    sh += buf[i]
+                    kh += 1
+            if kh == 0 or kh == m:
+                break
+        hi = sh / kh
+        lo = (total - sh) / (m - kh)
+        t = mul64(0.5, hi + lo)
+        if kh == count_hi:
+            break
+        count_hi = kh
+    ssr = 0.0
+    for i in range(m):
+        e = buf[i] - (hi if buf[i] > t else lo)
+        ssr += mul64(e, e)
+    if p % step == 0:
+        out_s2[p // step] = ssr / (m - 2)
+        out_mu[p // step] = total / m
+    if hi - lo < 1e-6:
+        hi = lo + 1e-6
+    out_hi[yy, xx] = np.float32(hi)
+    out_lo[yy, xx] = np.float32(lo)
+
+
+@cuda.jit(device=True)
+def _fit(buf, xs, row, ns, xtab):
+    """`posterior._fit`: least-squares (b, c >= 0) of r = b + c x for codebook row `row`."""
+    m = ns + 2
+    sx = 1.0
+    sxx = 1.0
+    sr = 0.0
+    sxr = buf[ns]
+    for i in range(ns):
+        x = xtab[row, i]
+        xs[i] = x
+        sx += x
+        sxx += mul64(x, x)
+        sxr += mul64(x, buf[i])
+    xs[ns] = 1.0
+    xs[ns + 1] = 0.0
+    for i in range(m):
+        sr += buf[i]
+    den = mul64(np.float64(m), sxx) - mul64(sx, sx)
+    c = (mul64(np.float64(m), sxr) - mul64(sx, sr)) / den if den > 0 else 0.0
+    if c < 0.0:
+        c = 0.0
+    b = (sr - mul64(c, sx)) / m
+    return b, c
+
+
+@cuda.jit
+def fit_stats(frames, inverse, has_inv, white, black, scale, xtab, best, step_y, step_x, out_s2, out_mu):
+    """`posterior._fit_stats`: out_* (rows, cols) float64 of the subgrid pixel (ry * step_y, rx * step_x)."""
+    buf = cuda.local.array(MAX_M, np.float64)
+    xs = cuda.local.array(MAX_M, np.float64)
+    rows = out_s2.shape[0]
+    cols = out_s2.shape[1]
+    ry, rx, inside = pixel_of(cuda.grid(1), rows, cols)
+    if not inside:
+        return
+    n = frames.shape[0]
+    ns = 2 * n if has_inv else n
+    m = ns + 2
+    yy = ry * step_y
+    xx = rx * step_x
+    row = best[yy, xx, 0]
+    if row < 0:
+        out_s2[ry, rx] = np.nan
+        out_mu[ry, rx] = np.nan
+        return
+    _load(frames, inverse, ns, n, white, black, scale, yy, xx, buf)
+    b, c = _fit(buf, xs, row, ns, xtab)
+    ssr = 0.0
+    mu = 0.0
+    for i in range(m):
+        mi = b + mul64(c, xs[i])
+        e = buf[i] - mi
+        ssr += mul64(e, e)
+        mu += mi
+    out_s2[ry, rx] = ssr / (m - 2)
+    out_mu[ry, rx] = mu / m
+
+
+@cuda.jit(device=True)
+def _nll(buf, xs, row, ns, xtab, a, beta, use_row):
+    """`posterior._nll`: (L, Mahalanobis part, contrast) of row `row` (use_row) or one flat level."""
+    m = ns + 2
+    if use_row:
+        b, c = _fit(buf, xs, row, ns, xtab)
+    else:
+        b = 0.0
+        for i in range(m):
+            b += buf[i]
+        b /= m
+        c = 0.0
+        for i in range(m):
+            xs[i] = 0.0
+    m1 = b + c
+    v0 = a + mul64(beta, b if b > 0.0 else 0.0)
+    v1 = a + mul64(beta, m1 if m1 > 0.0 else 0.0)
+    l0 = math.log(v0)
+    l1 = math.log(v1)
+    r0 = 1.0 / v0
+    r1 = 1.0 / v1
+    total = 0.0
+    maha = 0.0
+    for i in range(m):
+        x = xs[i]
+        if x == 0.0:
+            e = buf[i] - b
+            q = mul64(mul64(e, e), r0)
+            total += q + l0
+        elif x == 1.0:
+            e = buf[i] - m1
+            q = mul64(mul64(e, e), r1)
+            total += q + l1
+        else:
+            mi = b + mul64(c, x)
+            v = a + mul64(beta, mi if mi > 0.0 else 0.0)
+            e = buf[i] - mi
+            q = mul64(e, e) / v
+            total += q + math.log(v)
+        maha += q
+    return total, maha, c
+
+
+@cuda.jit(device=True)
+def _clipped_exp(d):
+    """exp(-0.5 * clip(d, -_CLIP, _CLIP))."""
+    return math.exp(mul64(-0.5, min(max(d, -_CLIP), _CLIP)))
+
+
+@cuda.jit(device=True)
+def _tail_mass(buf, xs, rk, count, ns, nbits, xtab, a, beta, packed, flips, flip_bits, flip_w, weight, wlo, whi,
+               floor, delta, sorted_d):
+    """`posterior._tail_mass` (see there)."""
+    b, c = _fit(buf, xs, rk[0], ns, xtab)
+    for i in range(ns):
+        mo = b + mul64(c, xs[i])
+        mf = b + mul64(c, 1.0 - xs[i])
+        vo = a + mul64(beta, mo if mo > 0.0 else 0.0)
+        vf = a + mul64(beta, mf if mf > 0.0 else 0.0)
+        eo = buf[i] - mo
+        ef = buf[i] - mf
+        delta[i] = (mul64(ef, ef) / vf + math.log(vf)) - (mul64(eo, eo) / vo + math.log(vo))
+    for i in range(nbits):
+        if ns > nbits:
+            delta[i] += delta[i + nbits]
+        sorted_d[i] = delta[i]
+    for i in range(1, nbits):
+        v = sorted_d[i]
+        j = i - 1
+        while j >= 0 and sorted_d[j] > v:
+            sorted_d[j + 1] = sorted_d[j]
+            j -= 1
+        sorted_d[j + 1] = v
+    lowest = 0.0
+    for i in range(flip_w[0]):
+        lowest += sorted_d[i]
+    nflips = flips.shape[0]
+    if mul64(mul64(np.float64(nflips), weight), _clipped_exp(lowest)) < floor:
+        return 0.0
+    own = packed[rk[0]]
+    total = 0.0
+    for j in range(nflips):
+        d = 0.0
+        for t in range(flip_w[j]):
+            d += delta[flip_bits[j, t]]
+        total += _clipped_exp(d)
+    total = mul64(total, weight)
+    for k in range(1, count):
+        word = own ^ packed[rk[k]]
+        bits = 0
+        d = 0.0
+        for i in range(nbits):
+            if (word >> np.uint64(i)) & np.uint64(1):
+                bits += 1
+                d += delta[i]
+        if wlo <= bits and bits <= whi:
+            total -= _clipped_exp(d)
+    return total if total > 0.0 else 0.0
+
+
+@cuda.jit
+def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits, cand, searched, skip_margin, a, beta,
+                     packed, flips, flip_bits, flip_w, tail_weight, wlo, whi, in_band, floor,
+                     out_cand, out_dist, out_comp, out_gain, out_conf):
+    """`posterior._posterior` (without the contrast output, which the decoder does not use):
+    searched (H, W, 3) float32 the search's distances; candidates more than `skip_margin` behind
+    the best are not rescored (kept after the scored ones with distance inf)."""
+    buf = cuda.local.array(MAX_M, np.float64)
+    xs = cuda.local.array(MAX_M, np.float64)
+    delta = cuda.local.array(MAX_M, np.float64)
+    sorted_d = cuda.local.array(MAX_N, np.float64)
+    lk = cuda.local.array(3, np.float64)
+    mk = cuda.local.array(3, np.float64)
+    rk = cuda.local.array(3, np.int32)
+    rest = cuda.local.array(3, np.int32)
+    n = frames.shape[0]
+    yy, xx, inside = pixel_of(cuda.grid(1), frames.shape[1], frames.shape[2])
+    if not inside:
+        return
+    ns = 2 * n if has_inv else n
+    _load(frames, inverse, ns, n, white, black, scale, yy, xx, buf)
+    count = 0
+    unscored = 0
+    for k in range(3):
+        row = cand[yy, xx, k]
+        if row < 0:
+            continue
+        if k > 0 and searched[yy, xx, k] - searched[yy, xx, 0] > skip_margin:  # float32 difference, as on the CPU
+            rest[unscored] = row
+            unscored += 1
+            continue
+        total, maha, c = _nll(buf, xs, row, ns, xtab, a, beta, True)
+        j = count
+        while j > 0 and lk[j - 1] > total:  # insertion by likelihood (ties keep the search's order)
+            lk[j] = lk[j - 1]
+            mk[j] = mk[j - 1]
+            rk[j] = rk[j - 1]
+            j -= 1
+        lk[j] = total
+        mk[j] = maha
+        rk[j] = row
+        count += 1
+    for k in range(3):
+        if k < count:
+            out_cand[yy, xx, k] = rk[k]
+            out_dist[yy, xx, k] = np.float32(lk[k])
+        elif k < count + unscored:
+            out_cand[yy, xx, k] = rest[k - count]
+            out_dist[yy, xx, k] = np.float32(np.inf)
+        else:
+            out_cand[yy, xx, k] = -1
+            out_dist[yy, xx, k] = np.float32(np.inf)
+    if count == 0:
+        out_comp[yy, xx] = 0.0
+        out_gain[yy, xx] = np.nan
+        out_conf[yy, xx] = np.float32(0.0)
+        return
+    l0, _m0, _c0 = _nll(buf, xs, 0, ns, xtab, a, beta, False)
+    out_gain[yy, xx] = l0 - lk[0]
+    far = 0.0
+    every = 0.0
+    ek = 0.0
+    for k in range(1, count):
+        ek = math.exp(-min(mul64(lk[k] - lk[0], 0.5), _CLIP))
+        every += ek
+        if abs(rk[k] - rk[0]) > 1:
+            far += ek
+    nflips = flips.shape[0]
+    if (nflips > 0 and count == 3 and mul64(mul64(np.float64(nflips), tail_weight), ek) > floor
+            and far < 1.0 + every - far):
+        tail = mul64(in_band, _tail_mass(buf, xs, rk, count, ns, nbits, xtab, a, beta, packed, flips, flip_bits,
+                                         flip_w, tail_weight, wlo, whi, floor, delta, sorted_d))
+        far += tail
+        every += tail
+    out_comp[yy, xx] = far / (1.0 + every)
+    if count > 1:
+        out_conf[yy, xx] = np.float32((mk[1] - mk[0]) / mk[1]) if mk[1] > mk[0] else np.float32(0.0)
+    elif unscored > 0:  # d2 >= d1 + skip_margin: the ratio's lower bound
+        out_conf[yy, xx] = np.float32(skip_margin / (mk[0] + skip_margin))
+    else:
+        out_conf[yy, xx] = np.float32(0.0)
+
+
+@cuda.jit(device=True)
+def _gain_bin(g, bin_width, nb):
+    """The bin of gain g: min(int(sqrt(max(g, 0)) / bin_width), nb) (clamped before the cast)."""
+    q = math.sqrt(g if g > 0.0 else 0.0) / bin_width
+    if q >= nb:
+        return np.int64(nb)
+    return np.int64(q)
+
+
+@cuda.jit
+def gain_histogram(gain, bin_width, nb, median, counts):
+    """counts (nb + 2,) int64: [0..nb-1] finite gains per bin (`posterior.gain_bins`; bin nb is not
+    counted, as on the CPU), [nb] finite gains, [nb + 1] those with max(gain, 0) below the median."""
+    yy, xx, inside = pixel_of(cuda.grid(1), gain.shape[0], gain.shape[1])
+    if not inside:
+        return
+    g = gain[yy, xx]
+    if not math.isfinite(g):
+        return
+    k = _gain_bin(g, bin_width, nb)
+    if k < nb:
+        cuda.atomic.add(counts, k, 1)
+    cuda.atomic.add(counts, nb, 1)
+    if (g if g > 0.0 else 0.0) < median:
+        cuda.atomic.add(counts, nb + 1, 1)
+
+
+@cuda.jit
+def error_valid(gain, comp, cand, lookup, bin_width, nb, max_error, out_err, out_col0, out_col, out_valid):
+    """error (float32) = 1 - (1 - lookup[bin]) (1 - comp) where the gain is finite, else 1;
+    column0 = cand[..., 0]; valid = error < max_error (float32) and column0 >= 0; column = column0
+    where valid else -1."""
+    yy, xx, inside = pixel_of(cuda.grid(1), gain.shape[0], gain.shape[1])
+    if not inside:
+        return
+    g = gain[yy, xx]
+    e = 1.0
+    if math.isfinite(g):
+        dark = lookup[_gain_bin(g, bin_width, nb)]
+        e = 1.0 - mul64(1.0 - dark, 1.0 - comp[yy, xx])
+    err = np.float32(e)
+    c = cand[yy, xx, 0]
+    ok = err < max_error and c >= 0
+    out_err[yy, xx] = err
+    out_col0[yy, xx] = c
+    out_valid[yy, xx] = ok
+    out_col[yy, xx] = c if ok else np.int32(-1)
