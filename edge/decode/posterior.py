@@ -17,7 +17,8 @@ Three pure steps over numpy arrays (numba kernels, one pass over the pixels each
 
 2. `fit_noise` (after the search): per pixel, the least-squares levels of the best candidate c1,
    ``r_i = b + c * x_i(c1)`` over the m samples (x = symbol / (q - 1), white x = 1, black x = 0),
-   give the residual variance ``s2 = SSR / (m - 2)`` at the pixel's mean level ``mu``.  The noise
+   give the residual variance ``s2 = SSR / (m - 2)`` at the pixel's mean level ``mu`` (pixels
+   with a sample at 0 or at full scale are left out: clipping censors their residuals).  The noise
    model ``var(I) = a + beta * I`` (read + shot noise) is fitted to the per-bin medians of
    ``s2`` over 16 quantile bins of ``mu`` (medians, so wrongly decoded pixels do not inflate it;
    each divided by the median of chi2_(m-2) / (m-2)), by least squares, with ``a`` floored at the
@@ -108,6 +109,28 @@ class Posterior(NamedTuple):
     noise: Noise
 
 
+@njit(cache=True, inline="always")
+def _clipped(buf, m):
+    """Whether any of the m normalised samples sits at 0 or at full scale (1): its residual is
+    censored, so the pixel is left out of the noise fit."""
+    for i in range(m):
+        if buf[i] <= 0.0 or buf[i] >= 1.0:
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")
+def _above(buf, m, t):
+    """(sum, count) of the first m samples of buf above t."""
+    sh = 0.0
+    kh = 0
+    for i in range(m):
+        if buf[i] > t:
+            sh += buf[i]
+            kh += 1
+    return sh, kh
+
+
 @njit(cache=True, parallel=True)
 def _split_levels(frames, white, black, scale, out_hi, out_lo, out_s2, out_mu):
     n, height, width = frames.shape
@@ -132,20 +155,10 @@ def _split_levels(frames, white, black, scale, out_hi, out_lo, out_s2, out_mu):
             lo = bottom
             count_hi = -1
             for _ in range(SPLIT_ITERATIONS):
-                sh = 0.0
-                kh = 0
-                for i in range(m):
-                    if buf[i] > t:
-                        sh += buf[i]
-                        kh += 1
+                sh, kh = _above(buf, m, t)
                 if kh == 0 or kh == m:  # one class: split at the mid-range instead
                     t = 0.5 * (top + bottom)
-                    sh = 0.0
-                    kh = 0
-                    for i in range(m):
-                        if buf[i] > t:
-                            sh += buf[i]
-                            kh += 1
+                    sh, kh = _above(buf, m, t)
                     if kh == 0 or kh == m:
                         break
                 hi = sh / kh
@@ -158,7 +171,7 @@ def _split_levels(frames, white, black, scale, out_hi, out_lo, out_s2, out_mu):
             for i in range(m):
                 e = buf[i] - (hi if buf[i] > t else lo)
                 ssr += e * e
-            out_s2[yy, xx] = ssr / (m - 2)
+            out_s2[yy, xx] = ssr / (m - 2) if not _clipped(buf, m) else np.nan
             out_mu[yy, xx] = total / m
             if hi - lo < 1e-6:
                 hi = lo + 1e-6
@@ -254,7 +267,7 @@ def _fit_stats(frames, white, black, scale, xtab, best, step_y, step_x, out_s2, 
                 e = buf[i] - mi
                 ssr += e * e
                 mu += mi
-            out_s2[ry, rx] = ssr / (m - 2)
+            out_s2[ry, rx] = ssr / (m - 2) if not _clipped(buf, m) else np.nan
             out_mu[ry, rx] = mu / m
 
 
