@@ -309,7 +309,12 @@ def _steps(h: int, w: int) -> tuple[int, int]:
 
 def _noise_from(s2: np.ndarray, mu: np.ndarray, frames: np.ndarray, scale: float, prior: tuple[float, float]) -> Noise:
     """The binned-median fit of `fit_noise` from per-pixel residual variances `s2` (NaN = none)
-    at mean levels `mu`."""
+    at mean levels `mu`.  Larger than `FIT_PIXELS`: every step-th pixel (row-major), then the
+    finite ones (the CUDA backend downloads exactly that subsample)."""
+    s2, mu = np.ravel(s2), np.ravel(mu)
+    if s2.size > FIT_PIXELS:  # a regular subsample (deterministic), as `_steps`
+        step = -(-s2.size // FIT_PIXELS)
+        s2, mu = s2[::step], mu[::step]
     ok = np.isfinite(s2)
     # variance floor: the quantisation step's (integer frames), else a tiny positive number
     floor = float(scale) ** 2 / 12.0 if np.issubdtype(frames.dtype, np.integer) else 1e-12
@@ -317,9 +322,6 @@ def _noise_from(s2: np.ndarray, mu: np.ndarray, frames: np.ndarray, scale: float
     if ok.sum() < MIN_FIT_PIXELS:
         return prior_noise
     s2v, muv = s2[ok], mu[ok]
-    if s2v.size > FIT_PIXELS:  # a regular subsample (deterministic), as `_steps`
-        step = -(-s2v.size // FIT_PIXELS)
-        s2v, muv = s2v[::step], muv[::step]
     # NOISE_BINS equal-count bins of the mean level (its quantile bins): one sort, medians per slice
     order = np.argsort(muv, kind="stable")
     muv, s2v = muv[order], s2v[order]

@@ -9,9 +9,9 @@ then white and black, each ``float64(raw) * scale`` (`posterior._row_block`).
   of the code (and inverse) frames (`decoder._decode_error_rule`).
 * `split_levels`: `posterior._split_levels` (two-means of the m samples by Lloyd's iterations
   -> on / off float32 levels); its residual variance / mean level go to compact arrays that hold exactly the
-  pixels `posterior._noise_from` keeps for its fit (every `step`-th pixel, row-major, which
-  holds where every s2 is finite: frames with NaN samples would subsample differently), so
-  only those are downloaded.
+  pixels `posterior._noise_from` subsamples for its fit (every `step`-th pixel, row-major; NaN
+  where a sample is clipped, which the host drops as the CPU does), so only those are
+  downloaded.
 * `fit_stats`: `posterior._fit_stats` on the `posterior._steps` subgrid (downloaded whole: at
   most `posterior.FIT_PIXELS` pixels).
 * `posterior_kernel`: `posterior._posterior` (the top-3 refit NLLs re-ordered by likelihood,
@@ -59,6 +59,15 @@ def _load(frames, inverse, ns, n, white, black, scale, yy, xx, buf):
         buf[i] = mul64(_sample(frames, inverse, n, yy, xx, i), scale)
     buf[ns] = mul64(white[yy, xx], scale)
     buf[ns + 1] = mul64(black[yy, xx], scale)
+
+
+@cuda.jit(device=True)
+def _clipped(buf, m):
+    """`posterior._clipped`: a sample at 0 or at full scale (the pixel stays out of the noise fit)."""
+    for i in range(m):
+        if buf[i] <= 0.0 or buf[i] >= 1.0:
+            return True
+    return False
 
 
 @cuda.jit
@@ -130,7 +139,7 @@ def split_levels(frames, inverse, has_inv, white, black, scale, iterations, step
         e = buf[i] - (hi if buf[i] > t else lo)
         ssr += mul64(e, e)
     if p % step == 0:
-        out_s2[p // step] = ssr / (m - 2)
+        out_s2[p // step] = ssr / (m - 2) if not _clipped(buf, m) else np.nan
         out_mu[p // step] = total / m
     if hi - lo < 1e-6:
         hi = lo + 1e-6
@@ -193,7 +202,7 @@ def fit_stats(frames, inverse, has_inv, white, black, scale, xtab, best, step_y,
         e = buf[i] - mi
         ssr += mul64(e, e)
         mu += mi
-    out_s2[ry, rx] = ssr / (m - 2)
+    out_s2[ry, rx] = ssr / (m - 2) if not _clipped(buf, m) else np.nan
     out_mu[ry, rx] = mu / m
 
 
