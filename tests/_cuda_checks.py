@@ -319,9 +319,9 @@ CONFIDENCE_RULE = {"validity": "confidence"}
 
 def check_runtime_error_rule(name):
     """The test profile as it is (the library's defaults: the "error" rule) with backend "cuda":
-    no frame staging, the device's candidate search and the host posterior give the CPU
-    pipeline's column, confidence, valid mask and error probability, and a whole stack's depth
-    result equals the CPU's (error image included)."""
+    frames are staged, and the device's error rule gives the CPU pipeline's column, confidence,
+    valid mask and error probability, and a whole stack's depth result equals the CPU's (error
+    image included), staged or uploaded whole."""
     from _service_helpers import load_test_profile
 
     from edge.runtime.assembly import StackAssembler
@@ -329,22 +329,26 @@ def check_runtime_error_rule(name):
 
     cpu_pipe = DepthPipeline(load_test_profile())
     gpu_pipe = DepthPipeline(load_test_profile(decoder={"backend": "cuda"}))
-    ok = cpu_pipe.rule == gpu_pipe.rule == "error" and gpu_pipe.stager is None and gpu_pipe.on_frame is None
+    ok = cpu_pipe.rule == gpu_pipe.rule == "error" and gpu_pipe.stager is not None and gpu_pipe.on_frame is not None
     cap, white, black = capture(cpu_pipe.code, 3, 24, band_center=-30, dark=0.05)
     ref = cpu_pipe.decode(cap.frames, white, black)
     got = gpu_pipe.decode(cap.frames, white, black)
     ok &= all(np.array_equal(getattr(ref, f), getattr(got, f)) for f in (*HOST, "error")) and ref.error is not None
     m = len(gpu_pipe.schedule)
     same = 0
+    staged = 0
     for k, images in enumerate(stacks_for(gpu_pipe.code, 2)):
         asm = StackAssembler(gpu_pipe.schedule)
+        if k == 1:  # the second stack arrives through the capture hook: staged frame by frame
+            asm.on_frame = gpu_pipe.on_frame
         stack = None
         for f in stack_frames(gpu_pipe, images, k, k * m):
             stack = asm.push(f) or stack
         a, b = cpu_pipe.process(stack), gpu_pipe.process(stack)
+        staged += int(b.stats.get("gpu_stacks_staged", 0))
         same += same_result(a, b) and a.error is not None and a.error.tobytes() == b.error.tobytes()
-    ok &= same == 2
-    emit(name, ok, f"valid {int(ref.valid.sum())}, stacks equal {same} of 2")
+    ok &= same == 2 and staged == 1
+    emit(name, ok, f"valid {int(ref.valid.sum())}, stacks equal {same} of 2, staged {staged}")
 
 
 class Downloads:

@@ -90,9 +90,9 @@ class DepthPipeline:
         self.stager = None
         #: the validity rule of the service's stacks (code frames, white, black: no inverse frames)
         self.rule = self.settings.rule(False)
-        # frames are staged under the "confidence" rule only; under the "error" rule `decode`
-        # runs the error rule on the device from a whole-stack upload (staging it: a follow-up)
-        if (self.rule == "confidence" and self.settings.backend != "cpu"
+        # frames are staged under either rule: the device runs the error rule's stages too
+        # (`edge.decode.backends.cuda.pipeline.error_device`)
+        if (self.settings.backend != "cpu"
                 and get_backend(self.settings.backend).__name__.endswith(".cuda")):
             import functools
 
