@@ -77,12 +77,13 @@ CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inverse"
 #: CI's budget: on a cold 2-core machine the simulator subprocess compiles every CPU reference
 #: it calls, and all checks together ran past 10 minutes there.  CI runs these (the search,
 #: hard, validity and refit kernels, the staged / reduced-download runtime paths, and one error-
-#: rule decode, whole and through the runtime); ``EDGE_CUDA_CHECKS=full`` runs every check.
+#: rule decode, whole and through the runtime, and method "sgm" with its host propagation);
+#: ``EDGE_CUDA_CHECKS=full`` runs every check.
 CI_CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inverse",
              "soft-band-ecc-22-10-uint16", "soft-band-gray-10-bitdepth-normalized", "soft-nary3-6",
              "hard-ecc-22-10", "hard-gray-10", "validity", "refit-kernels-ecc-22-10", "decode-hard",
              "decode-soft-inverse-nocheck", "error-rule-ecc-22-10-band", "staging", "reduced-download",
-             "staged-frames", "runtime-error-rule"]
+             "staged-frames", "runtime-error-rule", "error-rule-ecc-22-10-sgm"]
 RUN_CHECKS = CHECKS if os.environ.get("EDGE_CUDA_CHECKS") == "full" else CI_CHECKS
 
 

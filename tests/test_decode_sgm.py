@@ -268,6 +268,7 @@ def _rates(gen, ratio):
 # measured (160 x 120, one seed): soft -> sgm error rate; off-by->1 among valid pixels of sgm
 #   edge.sim ambient 1: 8.21 % -> 0.93 % (8.8x), 0.06 %;  ambient 2: 22.0 % -> 13.5 %, 0.10 %
 #     (8.8 % of its lit pixels have no top-3 candidate within one row: 13.2 -> 4.7 points above that)
+#   (figures before candidate propagation, `edge.decode.propagate`; the test prints today's)
 #   plane-box-sphere ambient 1: 2.13 % -> 0.18 % (11.8x), 0.02 %;  ambient 2: 16.6 % -> 1.91 % (8.7x), 0.08 %
 #   (ambient 1.25 since the posterior's tail term: soft errs on just under 2 % at ambient 1)
 @pytest.mark.parametrize("gen, ratio, factor", [(_sim, 1.0, 4.0), (_pbs, 1.25, 4.0), (_pbs, 2.0, 3.0)])
@@ -280,13 +281,14 @@ def test_sgm_cuts_soft_errors_with_defaults(gen, ratio, factor):
     assert sgm_far <= 0.02       # the published pixels meet the 1 % target within 2x
 
 
-def test_sgm_is_bounded_by_the_candidates_where_many_are_missing():
-    """edge.sim at ambient 2: what sgm cannot reach is the pixels without a near candidate; above
-    that floor it removes most of soft's errors."""
+def test_sgm_goes_below_the_floor_of_its_top_three_where_many_are_missing():
+    """edge.sim at ambient 2: many lit pixels have no top-3 candidate within one row of the truth;
+    with the neighbours' columns as one more state (`edge.decode.propagate`) sgm errs on fewer
+    pixels than that floor, and cuts soft's error rate by a clear factor."""
     r = _rates(_sim, 2.0)
     (soft, _), (sgm, sgm_far), floor = r["soft"], r["sgm"], r["unreachable"]
-    assert 0.02 <= soft <= 0.3
-    assert (sgm - floor) * 2.0 <= soft - floor
+    assert 0.02 <= soft <= 0.3 and floor >= 0.02
+    assert sgm < floor and sgm * 4.0 <= soft
     assert sgm_far <= 0.02
 
 

@@ -13,7 +13,9 @@ Methods (``method=``):
 * ``"list+median"``: order prior, then the median filter.
 * ``"sgm"``: semi-global regularisation of the top-3 candidates with a smoothness prior on
   disparity (`edge.decode.sgm`; beyond the paper).  Under the "error" rule on the posterior's
-  likelihoods (candidates re-ordered by aggregated cost, error re-derived from it); under the
+  likelihoods, each uncertain pixel widened by one state, its neighbours' column scored on its
+  own samples (`edge.decode.propagate`; `sgm_stage`), candidates re-ordered by aggregated cost
+  and error re-derived from it; under the
   "confidence" rule on the search's ML distances, valid where eligible and its error <
   ``max_error``.
 
@@ -53,9 +55,11 @@ from .backends import Q_SCALE
 from .backends import get as get_backend
 from .inputs import validate
 from .levels import estimate_levels
-from .posterior import fit_noise, posterior, split_levels
+from .posterior import Noise, fit_noise, posterior, split_levels
+from .propagate import propagate
 from .search import METRICS, band_args, check_call, search_candidates
 from .settings import DEFAULT_SETTINGS, METHODS, DecodeSettings
+from .sgm import Regularised
 from .sgm import from_posterior as sgm_from_posterior
 from .spatial import spatial_stage
 from .validity import eligibility, valid_mask
@@ -222,9 +226,9 @@ def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, nc
                      choices=band_choices(ncols, band, stripe), inverse=stack.inverse, distances=found.distances)
     column0 = np.ascontiguousarray(post.candidates[..., 0])
     ok = s.max_error
-    if s.method == "sgm":  # semi-global regularisation of the candidates (edge.decode.sgm)
-        reg = sgm_from_posterior(post.candidates, post.distances, post.error, stripe=stripe, max_error=ok,
-                                 choices=band_choices(ncols, band, stripe))
+    if s.method == "sgm":
+        reg = sgm_stage(stack, code, post.candidates, post.distances, post.error, noise, max_error=ok,
+                        rows=ncols, choices=band_choices(ncols, band, stripe), stripe=stripe)
         column, valid = reg.column, reg.valid
         post = post._replace(candidates=reg.candidates, distances=reg.distances, error=reg.error)
     elif s.method in ("soft", "hard"):
@@ -242,6 +246,22 @@ def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, nc
                  rule="error", levels=s.levels)
     return Decoded(column=column, confidence=post.confidence, valid=valid, candidates=post.candidates,
                    distances=post.distances, stats=stats, error=post.error)
+
+
+def sgm_stage(stack: CodedCapture, code: Code, candidates: np.ndarray, distances: np.ndarray, error: np.ndarray,
+              noise: Noise, *, max_error: float, rows: int, choices: int, stripe: int) -> Regularised:
+    """Method "sgm" under the "error" rule (every backend runs this on the host): the posterior's
+    candidates (H, W, 3), distances ``L_k`` and error (H, W) of `stack`, widened by one state per
+    uncertain pixel (`edge.decode.propagate`, its neighbours' column scored with `noise`), then
+    regularised (`edge.decode.sgm.from_posterior`); candidates / distances come back (H, W, 3),
+    re-ordered by aggregated cost."""
+    wide = propagate(stack.frames, stack.white, stack.black, float(stack.scale), code, candidates, distances, error,
+                     noise, max_error=max_error, choices=choices, rows=rows, inverse=stack.inverse)
+    reg = sgm_from_posterior(wide.candidates, wide.distances, error, stripe=stripe, max_error=max_error,
+                             choices=choices, scored=3)
+    return reg._replace(candidates=np.ascontiguousarray(reg.candidates[..., :3]),
+                        distances=np.ascontiguousarray(reg.distances[..., :3]),
+                        costs=np.ascontiguousarray(reg.costs[..., [0, 1, 2, 4]]))
 
 
 def decode_capture(capture: CodedCapture, code: Code | None = None, *, settings=None, **overrides) -> Decoded:

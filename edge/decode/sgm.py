@@ -424,7 +424,7 @@ def regularise(candidates: np.ndarray, unary: np.ndarray, *, max_error: float, p
 
 
 @njit(cache=True, parallel=True)
-def _posterior_unaries(cand, dist, error, log_n, out):
+def _posterior_unaries(cand, dist, error, log_n, scored, out):
     height, width, k = cand.shape
     for y in prange(height):
         for x in range(width):
@@ -445,6 +445,8 @@ def _posterior_unaries(cand, dist, error, log_n, out):
                     continue
                 uj = max(0.5 * (lj - l1), 0.0)
                 out[y, x, j] = uj
+                if j >= scored:  # an added state (`edge.decode.propagate`): not in the published error
+                    continue
                 e = math.exp(-uj) if uj < _EXP_CUT else 0.0
                 every += e
                 if abs(cand[y, x, j] - c0) > 1:
@@ -457,11 +459,14 @@ def _posterior_unaries(cand, dist, error, log_n, out):
                 out[y, x, k] = min(max(-math.log(e0), -NONE_CLIP), NONE_CLIP) + log_n
 
 
-def posterior_unaries(candidates: np.ndarray, distances: np.ndarray, error: np.ndarray, *, choices: int) -> np.ndarray:
+def posterior_unaries(candidates: np.ndarray, distances: np.ndarray, error: np.ndarray, *, choices: int,
+                      scored: int | None = None) -> np.ndarray:
     """(H, W, K + 1) float32 unaries of the module docstring from `edge.decode.posterior`'s
     output: candidates (H, W, K) int32 best-first, distances (H, W, K) the -2 log-likelihoods
     ``L_k`` (inf absent), error (H, W) its P(wrong); choices: N.  The none state's ``-log e0`` is
-    clipped to [-`NONE_CLIP`, `NONE_CLIP`] before ``log N`` is added."""
+    clipped to [-`NONE_CLIP`, `NONE_CLIP`] before ``log N`` is added.  scored: the first
+    `scored` candidates are the ones the error was computed over (default K); e0 is recovered
+    from those, and later ones (`edge.decode.propagate`'s extra state) only get their unary."""
     cand = np.ascontiguousarray(candidates, np.int32)
     if cand.ndim != 3 or np.shape(distances) != cand.shape or np.shape(error) != cand.shape[:2]:
         raise ValueError(f"posterior_unaries: expected candidates / distances (H, W, K) and error (H, W), got "
@@ -469,8 +474,11 @@ def posterior_unaries(candidates: np.ndarray, distances: np.ndarray, error: np.n
     out = np.empty(cand.shape[:2] + (cand.shape[2] + 1,), np.float32)
     if choices < 1:
         raise ValueError(f"choices: expected >= 1 candidate columns, got {choices}")
+    k = cand.shape[2] if scored is None else int(scored)
+    if not 1 <= k <= cand.shape[2]:
+        raise ValueError(f"scored: expected 1..{cand.shape[2]} candidates, got {scored}")
     _posterior_unaries(cand, np.ascontiguousarray(distances, np.float32), np.ascontiguousarray(error, np.float32),
-                       float(math.log(choices)), out)
+                       float(math.log(choices)), k, out)
     return out
 
 
@@ -514,14 +522,15 @@ def surface_steps(column: np.ndarray, ok: np.ndarray, *, stripe: int) -> tuple[f
 
 
 def from_posterior(candidates: np.ndarray, distances: np.ndarray, error: np.ndarray, *, choices: int, stripe: int,
-                   max_error: float) -> Regularised:
+                   max_error: float, scored: int | None = None) -> Regularised:
     """Method "sgm" under the "error" rule: `regularise` of `edge.decode.posterior`'s candidates
-    (H, W, K), distances ``L_k`` (H, W, K) and error (H, W) with `posterior_unaries`, the
+    (H, W, K), distances ``L_k`` (H, W, K) and error (H, W) with `posterior_unaries` (`scored`:
+    as there; the decoder passes the top three plus `edge.decode.propagate`'s extra state), the
     default `penalties` for `choices` columns and the `surface_steps` of the pixels with
     ``error < max_error``."""
     prior = penalties(choices)
     steps = surface_steps(candidates[..., 0], np.asarray(error) < max_error, stripe=stripe)
-    return regularise(candidates, posterior_unaries(candidates, distances, error, choices=choices),
+    return regularise(candidates, posterior_unaries(candidates, distances, error, choices=choices, scored=scored),
                       max_error=max_error, steps=steps, prior=prior, distances=distances)
 
 

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numba import cuda
 
+from ....capture import CodedCapture
 from ....codes import Code
 from ... import kernels
 from ...inputs import validate
@@ -232,7 +233,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     st = dict(st, noise_a=noise.a, noise_beta=noise.beta, noise_fitted=noise.fitted, rule="error",
               levels=s_in.levels, side_downloads=side)
     out = {"rule": "error", "candidates": pc, "distances": pd, "confidence": pconf, "error": err, "column0": col0,
-           "stats": st, "choices": choices}
+           "stats": st, "choices": choices, "rows": columns, "noise": noise}
     if s.method in ("soft", "hard"):
         out["column"], out["valid"] = column, valid
     return out
@@ -262,7 +263,7 @@ def _outputs(outputs) -> frozenset[str]:
 
 
 def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | None = None, *, stripe: int = 1,
-           outputs=FIELDS):
+           outputs=FIELDS, stack: CodedCapture | None = None, code: Code | None = None):
     """Device results of `decode_device` -> `edge.decode.Decoded`, downloading only what is needed.
 
     outputs: the `Decoded` fields wanted on the host (default all of `FIELDS`; the runtime asks
@@ -277,7 +278,9 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     copied back, the error rule's intermediate downloads first) and ``download_bytes``.  t0:
     perf_counter at the upload; stats["seconds"]
     becomes the time from it to the results on the host.  stripe: projector columns per
-    codebook row (the spatial filters work in projector pixels)."""
+    codebook row (the spatial filters work in projector pixels).  stack, code: the host capture
+    and its code (method "sgm" under the "error" rule: `edge.decode.decoder.sgm_stage` scores
+    the neighbours' columns on the host samples)."""
     from ...decoder import Decoded
     from ...spatial import spatial_stage
     from ...validity import valid_mask
@@ -305,11 +308,13 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     if s.method in ("soft", "hard"):
         column, valid = host.get("column"), host.get("valid")
     elif rule == "error" and s.method == "sgm":
-        # `_decode_error_rule`'s semi-global regularisation of the posterior, on the host
-        from ...sgm import from_posterior
+        # `_decode_error_rule`'s propagation + semi-global regularisation of the posterior, on the host
+        from ...decoder import sgm_stage
 
-        reg = from_posterior(host["candidates"], host["distances"], host["error"], stripe=stripe,
-                             max_error=s.max_error, choices=out["choices"])
+        if stack is None or code is None:
+            raise ValueError("finish: method 'sgm' under the 'error' rule needs the host stack and its code")
+        reg = sgm_stage(stack, code, host["candidates"], host["distances"], host["error"], out["noise"],
+                        max_error=s.max_error, rows=out["rows"], choices=out["choices"], stripe=stripe)
         column, valid = reg.column, reg.valid
         host.update(candidates=reg.candidates, distances=reg.distances, error=reg.error)
     elif rule == "error":
@@ -342,4 +347,4 @@ def decode_whole(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code:
     stack = validate(frames, white, black, code, inverse=inverse, bit_depth=bit_depth)
     t0 = time.perf_counter()
     out = decode_device(upload(stack), code, settings, columns=ncols, band=band, stripe=stripe)
-    return finish(out, settings, t0=t0, stripe=stripe, outputs=outputs)
+    return finish(out, settings, t0=t0, stripe=stripe, outputs=outputs, stack=stack, code=code)

@@ -87,7 +87,7 @@ class StagingSet:
         t0 = time.perf_counter()
         out = decode_device(ds, code, settings, columns=ncols, band=band, stripe=stripe, stream=stream,
                             buffers=self.buffers)
-        return finish(out, settings, stream, t0=t0, stripe=stripe, outputs=outputs)
+        return finish(out, settings, stream, t0=t0, stripe=stripe, outputs=outputs, stack=stack, code=code)
 
 
 class Staging:
