@@ -70,6 +70,18 @@ def _clipped(buf, m):
     return False
 
 
+@cuda.jit(device=True)
+def _above(buf, m, t):
+    """`posterior._above`: (sum, count) of the first m samples of buf above t."""
+    sh = 0.0
+    kh = 0
+    for i in range(m):
+        if buf[i] > t:
+            sh += buf[i]
+            kh += 1
+    return sh, kh
+
+
 @cuda.jit
 def normalise(frames, inverse, has_inv, scale, out_f, out_inv):
     """out_f (n, H, W) float32 = float32(frames) * scale (float32); out_inv the same for inverse."""
@@ -112,20 +124,10 @@ def split_levels(frames, inverse, has_inv, white, black, scale, iterations, step
     lo = bottom
     count_hi = -1
     for _ in range(iterations):
-        sh = 0.0
-        kh = 0
-        for i in range(m):
-            if buf[i] > t:
-                sh += buf[i]
-                kh += 1
+        sh, kh = _above(buf, m, t)
         if kh == 0 or kh == m:  # one class: split at the mid-range instead
             t = mul64(0.5, top + bottom)
-            sh = 0.0
-            kh = 0
-            for i in range(m):
-                if buf[i] > t:
-                    sh += buf[i]
-                    kh += 1
+            sh, kh = _above(buf, m, t)
             if kh == 0 or kh == m:
                 break
         hi = sh / kh
