@@ -146,6 +146,7 @@ def check_error_rule(name, code_name, *, h, w, inverse=False, band=True, dtype=n
     nv = int(ref.valid.sum())
     on_device = got.stats.get("rule") == "error" and "error" in dl.names and "gain_counts" in dl.names
     ok = not bad and all(noise) and 0 < nv < ref.valid.size and on_device
+    ok &= got.stats.get("level_source") == ref.stats.get("level_source") is not None  # the same levels stage
     ok &= bool(got.stats.get("noise_fitted")) == fitted  # fitted: >= MIN_FIT_PIXELS decoded (the binned fit ran)
     derr = float(np.nanmax(np.abs(ref.error - got.error)))
     emit(name, ok, f"differs in {bad}, noise same {noise}, valid {nv}/{ref.valid.size}, max |d error| {derr:.2e}, "
@@ -727,6 +728,7 @@ def main() -> int:
             "error-rule-gray-10-uint16-median", "gray-10", h=b[0], w=b[1], dtype=np.uint16, method="list+median")),
         ("error-rule-ecc-22-10-hard-calibration", lambda: check_error_rule(
             "error-rule-ecc-22-10-hard-calibration", "ecc-22-10", h=b[0], w=b[1], method="hard", levels="calibration")),
+        ("error-rule-nary3-6", lambda: check_error_rule("error-rule-nary3-6", "nary3-6", h=b[0], w=b[1])),
         ("error-rule-ecc-22-10-fitted", lambda: check_error_rule("error-rule-ecc-22-10-fitted", "ecc-22-10", h=24,
                                                                  w=24, fitted=True)),
         ("error-rule-reduced-download", lambda: check_error_rule_reduced("error-rule-reduced-download")),

@@ -5,11 +5,12 @@ rectified with the projector (baseline along x).  Albedo is a smooth random fiel
 Every frame (the n code frames and the white / black calibration frames) gets the per-frame
 exposure ``T / n`` of a fixed total exposure ``T``; the intensity of a pixel in a frame is
 
-    I = t * albedo * (projector * bit + ambient)
+    I = t * albedo * (projector * symbol / (q - 1) + ambient)
 
 plus Gaussian noise of variance ``read**2 + shot**2 * I``, quantised to `bits` bits (uint8 for 8,
 uint16 holding `bits`-bit values otherwise) or left as float32 (``bits=None``).  Ground truth:
-the projector column (codebook row, stripe 1) each pixel sees.
+the projector column (codebook row, stripe 1) each pixel sees.  Codebooks may be q-ary (symbol s
+at ``s / (q - 1)`` of the projector's power, as `edge.patterns` renders them).
 """
 
 from __future__ import annotations
@@ -41,16 +42,19 @@ def scene(width: int, height: int, *, seed: int, columns: int = 1024) -> tuple[n
 
 def render(codebook: np.ndarray, column: np.ndarray, albedo: np.ndarray, *, ambient: float, projector: float = 0.5,
            total_exposure: float = 10.0, read: float = 0.002, shot: float = 0.04, bits: int | None = 12,
-           seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(frames (n, H, W), white (H, W), black (H, W)) of a binary `codebook` (rows = columns).
+           seed: int = 0, q: int = 2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(frames (n, H, W), white (H, W), black (H, W)) of a `codebook` (rows = columns) of symbols
+    0..q-1 (binary by default); symbol s is projected at ``s / (q - 1)`` of full power.
 
     ambient / projector: levels a white surface reaches in a frame of exposure 1; each of the
     n + 2 frames has exposure ``total_exposure / n``.
     """
+    if q < 2 or int(np.max(codebook)) > q - 1:
+        raise ValueError(f"expected symbols 0..{q - 1} (q >= 2), got a codebook up to {int(np.max(codebook))}")
     rng = np.random.default_rng(seed)
     n = codebook.shape[1]
     t = total_exposure / n
-    bits_of = codebook[column].astype(np.float64)                     # (H, W, n)
+    bits_of = codebook[column].astype(np.float64) / (q - 1)           # (H, W, n) in [0, 1]
     patterns = np.concatenate([np.moveaxis(bits_of, -1, 0), np.ones((1,) + column.shape), np.zeros((1,) + column.shape)])
     clean = t * albedo[None] * (projector * patterns + ambient)
     noisy = clean + rng.standard_normal(clean.shape) * np.sqrt(read ** 2 + shot ** 2 * clean)

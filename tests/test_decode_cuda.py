@@ -68,7 +68,7 @@ CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inverse"
           "decode-list+median", "decode-soft-refit", "decode-hard-refit-uint16", "decode-soft-inverse-nocheck",
           "error-rule-ecc-22-10-band", "error-rule-ecc-22-10-all", "error-rule-gray-10-inverse-band",
           "error-rule-ecc-22-10-inverse-all", "error-rule-gray-10-uint16-median",
-          "error-rule-ecc-22-10-hard-calibration",
+          "error-rule-ecc-22-10-hard-calibration", "error-rule-nary3-6",
           "error-rule-ecc-22-10-fitted", "error-rule-reduced-download", "error-rule-ecc-22-10-sgm",
           "staging", "runtime-pipeline", "reduced-download", "staged-frames", "staged-fallback", "staged-threads",
           "service-staged", "runtime-error-rule"]

@@ -25,6 +25,27 @@ def test_bad_values_name_the_field():
         DEFAULT_SETTINGS.replace(colour="red")
 
 
+def test_level_source_splits_binary_codes_only_under_the_error_rule():
+    s = DEFAULT_SETTINGS
+    assert s.rule(False) == "error" and s.rule(True) == "confidence"
+    assert s.level_source("error", 2) == "split"
+    assert s.level_source("error", 3) == s.level_source("error", 8) == "calibration"  # q levels, not two
+    assert s.level_source("confidence", 2) == "calibration"
+    for levels in ("calibration", "refit"):
+        assert all(s.replace(levels=levels).level_source(r, q) == levels for r in ("error", "confidence") for q in (2, 8))
+    with pytest.raises(ValueError, match="rule"):
+        s.level_source("auto", 2)
+    # what decode reports it ran
+    code = get_code("nary3-6")
+    rng = np.random.default_rng(4)
+    cap = make_capture(code, rng.integers(0, code.size, (12, 40)), rng=rng, albedo=0.6, sigma_s=0.02)
+    d = decode(cap.frames, cap.white, cap.black, code)
+    assert d.stats["rule"] == "error" and d.stats["levels"] == "auto" and d.stats["level_source"] == "calibration"
+    code = get_code("ecc-15-10")
+    cap = make_capture(code, rng.integers(0, code.size, (12, 40)), rng=rng, albedo=0.6, sigma_s=0.02)
+    assert decode(cap.frames, cap.white, cap.black, code).stats["level_source"] == "split"
+
+
 def test_options_equal_settings():
     code = get_code("ecc-15-10")
     rng = np.random.default_rng(3)

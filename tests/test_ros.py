@@ -71,6 +71,14 @@ def test_cdr_matches_rosbags_bytes_and_decodes():
     assert np.array_equal(img.data.view("<u2").reshape(3, 4), depth)
     # byte-identical to rosbags' own serialiser
     assert store.serialize_cdr(img, "sensor_msgs/msg/Image") == data
+    err = np.array([[0.0, 1e-6, np.nan], [0.25, np.nan, 1.0]], dtype=np.float32)  # NaN = no estimate
+    data = ros.serialize_cdr("sensor_msgs/msg/Image", ros.image_message(err, timestamp_ns=5, frame_id="f"))
+    img = store.deserialize_cdr(data, "sensor_msgs/msg/Image")
+    assert (img.height, img.width, img.encoding, img.step, img.is_bigendian) == (2, 3, "32FC1", 12, 0)
+    assert np.array_equal(img.data.view("<f4").reshape(2, 3), err, equal_nan=True)
+    assert store.serialize_cdr(img, "sensor_msgs/msg/Image") == data
+    with pytest.raises(ValueError, match="float32"):
+        ros.image_message(err.astype(np.float64), timestamp_ns=5, frame_id="f")
     k = [500.0, 0, 320, 0, 500, 240, 0, 0, 1]
     info = ros.camera_info_message(k, 640, 480, timestamp_ns=5, frame_id="f")
     data = ros.serialize_cdr("sensor_msgs/msg/CameraInfo", info)
@@ -98,9 +106,33 @@ def test_ros_names_and_domain():
         domain_id_from_env({"ROS_DOMAIN_ID": "x"})
 
 
+class ErrorPipeline(NumpyPipeline):
+    """NumpyPipeline whose decoder also estimates P(wrong column) (as the "error" rule's does)."""
+
+    def decode(self, codes, white, black):
+        d = super().decode(codes, white, black)
+        d.error = (0.5 * (1.0 - d.confidence)).astype(np.float32)
+        return d
+
+
+class Collect:
+    def __init__(self):
+        self.results = []
+
+    def on_result(self, r):
+        self.results.append(r)
+
+    def on_status(self, status):
+        pass
+
+    def close(self):
+        pass
+
+
 def test_service_publishes_ros2_topics_through_a_router():
     """A service in ROS mode, an in-process zenoh router (rmw_zenohd's role) and a plain zenoh
-    client: the client lists the liveliness tokens and decodes one sample of every topic."""
+    client: the client lists the liveliness tokens and decodes one sample of every topic (the
+    error image against the service's own result)."""
     from edge.profiles import apply_update
     from edge.io.publish import ZenohSink
     from edge.io.ros_sink import RosSink
@@ -122,7 +154,10 @@ def test_service_publishes_ros2_topics_through_a_router():
         tf_t = f"tf2_msgs::msg::dds_::TFMessage_/{store.hash_rihs01('tf2_msgs/msg/TFMessage')}"
         keys = {"depth": f"3/test_small/depth/image_rect_raw/{image_t}", "tf": f"3/tf/{tf_t}",
                 "depth_info": f"3/test_small/depth/camera_info/{info_t}",
+                "error": f"3/test_small/error/image_rect_raw/{image_t}",
+                "error_info": f"3/test_small/error/camera_info/{info_t}",
                 "confidence": f"3/test_small/confidence/image_rect_raw/{image_t}",
+                "confidence_info": f"3/test_small/confidence/camera_info/{info_t}",
                 "points": f"3/test_small/depth/points/{cloud_t}"}
         got: dict[str, list] = {k: [] for k in keys}
         lock = threading.Lock()
@@ -134,10 +169,11 @@ def test_service_publishes_ros2_topics_through_a_router():
             return cb
 
         subs = [client.declare_subscriber(key, on(leaf)) for leaf, key in keys.items()]
-        service = Service(profile, SimSensor(profile, poses=2), pipeline_factory=NumpyPipeline)
+        service = Service(profile, SimSensor(profile, poses=2), pipeline_factory=ErrorPipeline)
         zsink = ZenohSink(profile, service)
         rsink = RosSink(profile, session=zsink.publisher.session, environ={"ROS_DOMAIN_ID": "3"})
-        service.sinks.extend([rsink, zsink])
+        collect = Collect()
+        service.sinks.extend([collect, rsink, zsink])
         runner = threading.Thread(target=service.run, kwargs={"seconds": 60})
         runner.start()
         try:
@@ -156,9 +192,10 @@ def test_service_publishes_ros2_topics_through_a_router():
         qos = "::,10:,:,:,,"
         assert f"@ros2_lv/3/{zid}/0/0/NN/%/%/test_small" in tokens, tokens
         pubs = [t for t in tokens if "/MP/" in t]
-        assert len(pubs) == 6
+        assert len(pubs) == 8
         assert any(t.endswith(f"/MP/%/%/test_small/%tf/{tf_t}/{qos}") for t in pubs), pubs
         for topic, typ in [("depth/image_rect_raw", image_t), ("depth/camera_info", info_t),
+                           ("error/image_rect_raw", image_t), ("error/camera_info", info_t),
                            ("confidence/image_rect_raw", image_t), ("confidence/camera_info", info_t),
                            ("depth/points", cloud_t)]:
             mangled = "%test_small%" + topic.replace("/", "%")
@@ -176,13 +213,26 @@ def test_service_publishes_ros2_topics_through_a_router():
         seqs = [struct.unpack_from("<q", a)[0] for _, a in got["depth"]]
         assert seqs == sorted(seqs) and len(set(seqs)) == len(seqs)
         gids = {a[17:] for leaf in got for _, a in got[leaf]}
-        assert len(gids) == 5  # one GID per publisher
+        assert len(gids) == 8  # one GID per publisher
         info = store.deserialize_cdr(got["depth_info"][-1][0], "sensor_msgs/msg/CameraInfo")
         g = profile.geometry
         assert list(info.k) == [g.focal_px, 0, g.cx_camera, 0, g.focal_px, g.cy, 0, 0, 1]
         assert (info.width, info.height, info.header.frame_id) == (160, 120, "test_small_optical_frame")
         conf = store.deserialize_cdr(got["confidence"][-1][0], "sensor_msgs/msg/Image")
         assert conf.encoding == "mono8" and conf.step == 160
+        # the error image: 32FC1, NaN exactly where there is no depth, the values of the result it came with
+        by_stamp = {r.timestamp_ns: r for r in collect.results}
+        for payload, _ in got["error"]:
+            err = store.deserialize_cdr(payload, "sensor_msgs/msg/Image")
+            assert (err.height, err.width, err.encoding, err.step, err.is_bigendian) == (120, 160, "32FC1", 640, 0)
+            assert err.header.frame_id == "test_small_optical_frame"
+            r = by_stamp[err.header.stamp.sec * 1_000_000_000 + err.header.stamp.nanosec]
+            e = err.data.view("<f4").reshape(120, 160)
+            assert r.error is not None and np.array_equal(e, r.error, equal_nan=True)
+            assert np.array_equal(np.isnan(e), r.depth_mm == 0) and np.nanmax(e) <= 0.5
+            assert np.count_nonzero(e[r.depth_mm > 0]) > 0  # real values, not a blank image
+        error_info = store.deserialize_cdr(got["error_info"][-1][0], "sensor_msgs/msg/CameraInfo")
+        assert list(error_info.k) == list(info.k) and error_info.header.frame_id == "test_small_optical_frame"
         cloud = store.deserialize_cdr(got["points"][-1][0], "sensor_msgs/msg/PointCloud2")
         xyz = cloud.data.view("<f4").reshape(-1, 3)
         assert cloud.point_step == 12 and cloud.width == xyz.shape[0] > 1000 and cloud.is_dense
@@ -200,6 +250,72 @@ def test_service_publishes_ros2_topics_through_a_router():
     finally:
         client.close()
         router.close()
+
+
+def test_error_image_only_with_results_that_have_one():
+    """A result without an error image (the "confidence" rule) publishes depth but nothing on the
+    error topics; the next one, with an error image, publishes it (samples of one session arrive in
+    order, so the first result's absence is observed, not timed)."""
+    from edge.io.ros_sink import RosSink
+    from edge.profiles import apply_update
+    from edge.runtime.result import DepthResult
+
+    router_ep = f"tcp/127.0.0.1:{free_port()}"
+    router = zenoh.open(_conf("router", listen=[router_ep]))
+    client = zenoh.open(_conf("client", connect=[router_ep]))
+    session = zenoh.open(_conf("client", connect=[router_ep]))
+    profile = apply_update(load_test_profile(), {"ros": {"enabled": True, "router": router_ep},
+                                                 "points": {"publish": False}})
+    got: dict[str, list] = {"depth": [], "error": [], "error_info": []}
+    lock = threading.Lock()
+
+    def on(leaf):
+        def cb(sample):
+            with lock:
+                got[leaf].append(sample.payload.to_bytes())
+        return cb
+
+    sink = None
+    subs = []
+    try:
+        sink = RosSink(profile, session=session, environ={})
+        subs = [client.declare_subscriber(sink.keys[leaf], on(leaf)) for leaf in got]
+        deadline = time.time() + 30  # until the subscriptions have reached the sink's session
+        while time.time() < deadline and not all(sink._publishers[leaf].publisher.matching_status.matching
+                                                 for leaf in got):
+            time.sleep(0.05)
+        depth = np.zeros((4, 5), np.uint16)
+        depth[1:3, 1:4] = 800
+        error = np.where(depth > 0, np.float32(0.01), np.float32(np.nan)).astype(np.float32)
+        error[1, 1] = 0.2
+
+        def result(stamp, err):
+            return DepthResult(stack=stamp, sequence=stamp, timestamp_ns=stamp * 1_000_000_000 + 7, received_ns=0,
+                               depth_mm=depth, confidence=(depth > 0).astype(np.uint8) * 200,
+                               column=np.where(depth > 0, 10, -1).astype(np.int32), error=err)
+
+        sink.on_result(result(1, None))
+        sink.on_result(result(2, error))
+        deadline = time.time() + 30
+        while time.time() < deadline and not (len(got["depth"]) == 2 and len(got["error_info"]) == 1):
+            time.sleep(0.05)
+    finally:
+        for sub in subs:
+            sub.undeclare()
+        if sink is not None:
+            sink.close()
+        session.close()
+        client.close()
+        router.close()
+    store = _store()
+    assert len(got["depth"]) == 2 and len(got["error"]) == 1 and len(got["error_info"]) == 1, \
+        {k: len(v) for k, v in got.items()}
+    img = store.deserialize_cdr(got["error"][0], "sensor_msgs/msg/Image")
+    assert (img.header.stamp.sec, img.header.stamp.nanosec) == (2, 7)
+    assert (img.height, img.width, img.encoding, img.step) == (4, 5, "32FC1", 20)
+    assert np.array_equal(img.data.view("<f4").reshape(4, 5), error, equal_nan=True)
+    info = store.deserialize_cdr(got["error_info"][0], "sensor_msgs/msg/CameraInfo")
+    assert (info.header.stamp.sec, info.width, info.height) == (2, 5, 4)
 
 
 def test_run_ros_flag_connects_to_the_router_and_defaults_avoid_7447():

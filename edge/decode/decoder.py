@@ -87,7 +87,8 @@ class Decoded:
         ``second_class_pixels`` / ``second_class_blocks`` / ``blocks`` / ``pending_blocks``; the
         "band" path adds ``wide_key_pixels`` (pixels whose costs exceeded the 32-bit keys and were
         redone with 64-bit keys, see `kernels.soft_band_fold`).  Under the "error" rule it adds
-        ``rule``, ``levels`` and the fitted noise model ``noise_a`` / ``noise_beta`` (variance
+        ``rule``, ``levels``, ``level_source`` ("split", "calibration" or "refit",
+        `DecodeSettings.level_source`) and the fitted noise model ``noise_a`` / ``noise_beta`` (variance
         ``a + beta * I``, normalised units) with ``noise_fitted``.
     error: (H, W) float32 estimated probability that ``candidates[..., 0]`` is more than one
         codebook row off (`edge.decode.posterior`; the "error" validity rule), else None.  Under
@@ -181,7 +182,7 @@ def _decode(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code
     def top1(st: CodedCapture) -> np.ndarray:
         return search_candidates(st, code, first, columns=ncols, band=band, stripe=stripe).candidates[..., 0]
 
-    stack = estimate_levels(stack, code, "calibration" if s.levels == "auto" else s.levels, top1, iterations=iterations)
+    stack = estimate_levels(stack, code, s.level_source("confidence", code.q), top1, iterations=iterations)
     found = search_candidates(stack, code, s, columns=ncols, band=band, stripe=stripe)
     column0, eligible = eligibility(stack, found.candidates, s.min_contrast)
     spatial = spatial_stage(s, found.candidates, found.confidence, column0, eligible, stripe=stripe,
@@ -203,14 +204,16 @@ def band_choices(ncols: int, band: tuple[bool, int, int], stripe: int) -> int:
 def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, ncols: int,
                        band: tuple[bool, int, int], stripe: int) -> Decoded:
     """The stages under the "error" validity rule (`edge.decode.posterior`): split levels (with
-    ``levels="auto"``), the candidate search, the noise fit, the posterior of the top three, the
-    spatial methods on ``1 - error``, and ``error < max_error``."""
+    ``levels="auto"`` and a binary code, `DecodeSettings.level_source`), the candidate search,
+    the noise fit, the posterior of the top three, the spatial methods on ``1 - error``, and
+    ``error < max_error``."""
     scale = np.float32(stack.scale)
-    if s.levels == "refit":
+    source = s.level_source("error", code.q)
+    if source == "refit":
         first = s.replace(method="hard" if s.method == "hard" else "soft")
         searched = estimate_levels(stack, code, "refit", lambda st: search_candidates(
             st, code, first, columns=ncols, band=band, stripe=stripe).candidates[..., 0])
-    elif s.levels == "auto":
+    elif source == "split":
         on, off, first_noise = split_levels(stack.frames, stack.white, stack.black, float(scale),
                                             prior=(s.sigma_r, s.sigma_s), inverse=stack.inverse)
         inv = None if stack.inverse is None else stack.inverse.astype(np.float32) * scale
@@ -243,7 +246,7 @@ def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, nc
         column = np.where(spatial.valid, spatial.column, -1).astype(np.int32)
         valid = column >= 0
     stats = dict(found.stats, noise_a=noise.a, noise_beta=noise.beta, noise_fitted=noise.fitted,
-                 rule="error", levels=s.levels)
+                 rule="error", levels=s.levels, level_source=source)
     return Decoded(column=column, confidence=post.confidence, valid=valid, candidates=post.candidates,
                    distances=post.distances, stats=stats, error=post.error)
 

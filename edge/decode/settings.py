@@ -9,15 +9,17 @@ Fields (units: normalised intensity, 1 = full scale of the frame dtype):
 
 * ``method``: "hard" | "soft" | "list" | "median" | "list+median" | "sgm" (see `edge.decode.decoder`).
 * ``metric``: "ml" (heteroscedastic Gaussian likelihood) | "normalized" (the paper's distance).
-* ``levels``: "auto" (default: where the "error" rule applies, the search uses each pixel's on /
-  off levels split from its own n + 2 samples and the rule refits them per candidate,
-  `edge.decode.posterior`; elsewhere the calibration frames) | "calibration" (white / black taken as the on /
-  off levels) | "refit" (a first decode, a per-pixel least-squares refit from the code frames and
-  a second decode, `edge.decode.levels`).
+* ``levels``: "auto" (default: where the "error" rule applies to a binary code, the search uses
+  each pixel's on / off levels split from its own n + 2 samples and the rule refits them per
+  candidate, `edge.decode.posterior`; for q-ary codes (q > 2: the split assumes two levels) and
+  under the "confidence" rule the calibration frames; `level_source`) | "calibration" (white /
+  black taken as the on / off levels) | "refit" (a first decode, a per-pixel least-squares refit
+  from the code frames and a second decode, `edge.decode.levels`).
 * ``validity``: "auto" (default: "error" for the soft methods on captures without inverse
-  frames, else "confidence") | "error" (valid where the estimated probability that the column is
-  wrong, `edge.decode.posterior`, is below ``max_error``; the noise model is fitted from the
-  capture) | "confidence" (the contrast / confidence thresholds below).
+  frames, binary or q-ary, else "confidence"; `rule`) | "error" (valid where the estimated
+  probability that the column is wrong, `edge.decode.posterior`, is below ``max_error``; the
+  noise model is fitted from the capture) | "confidence" (the contrast / confidence thresholds
+  below).
 * ``max_error`` in (0, 1): the error-probability target of the "error" rule (default 0.01: at
   most about 1 in 100 published columns off by more than one codebook row); method "sgm" uses
   it under either rule (`edge.decode.sgm`).
@@ -100,12 +102,31 @@ class DecodeSettings:
         "error" or "confidence".  ``validity="auto"``: "error" for the soft methods on captures
         without inverse frames; "confidence" for "hard" and for pattern + inverse captures (the
         full-exposure captures that rule was validated on; "error" takes them when asked, see
-        the README)."""
+        the README).
+
+        The same for binary and q-ary (q > 2) codes, but with ``levels="auto"`` the error rule
+        of a q-ary code runs on the calibration levels, not on the two-level split
+        (`level_source`): on q-ary captures at fixed total exposure (tools/eval_nary.py, both
+        generators, sigma_s 0.01-0.04) the split throws the search off (nary8-3: 99-100 % of lit
+        pixels wrong or unpublished at sigma_s 0.01) and the confidence rule errs on 16-100 %,
+        while the error rule on the calibration levels is the best of the three on every code
+        and noise level measured (nary8-3 at sigma_s 0.01: 16-25 %; docs/results/nary)."""
         if self.validity == "error":
             return "error"
         if self.validity == "confidence" or has_inverse or self.method == "hard":
             return "confidence"
         return "error"
+
+    def level_source(self, rule: str, q: int) -> str:
+        """Where the on / off levels of a code with `q` symbols come from under `rule` ("error"
+        or "confidence", as `rule` returns): "split" (each pixel's two-means split,
+        `edge.decode.posterior.split_levels`: ``levels="auto"`` under the error rule, binary
+        codes only), "calibration" (white / black) or "refit"."""
+        if rule not in ("error", "confidence"):
+            raise ValueError(f"rule: expected 'error' or 'confidence', got {rule!r}")
+        if self.levels != "auto":
+            return self.levels
+        return "split" if rule == "error" and int(q) == 2 else "calibration"
 
     def as_dict(self) -> dict[str, Any]:
         """The settings as a plain dict (field name -> value)."""

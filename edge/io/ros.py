@@ -355,14 +355,15 @@ def _header(timestamp_ns: int, frame_id: str) -> dict[str, Any]:
             "frame_id": frame_id}
 
 
-_IMAGE_ENCODINGS = {np.dtype(np.uint16): "16UC1", np.dtype(np.uint8): "mono8"}
+_IMAGE_ENCODINGS = {np.dtype(np.uint16): "16UC1", np.dtype(np.uint8): "mono8", np.dtype(np.float32): "32FC1"}
 
 
 def image_message(image: np.ndarray, *, timestamp_ns: int, frame_id: str) -> dict[str, Any]:
-    """sensor_msgs/msg/Image of an (H, W) uint16 (``16UC1``, mm, REP 118) or uint8 (``mono8``) array."""
+    """sensor_msgs/msg/Image of an (H, W) uint16 (``16UC1``, mm, REP 118), uint8 (``mono8``) or
+    float32 (``32FC1``, NaN = no value as in REP 118; little endian, step 4 W) array."""
     image = np.asarray(image)
     if image.ndim != 2 or image.dtype not in _IMAGE_ENCODINGS:
-        raise ValueError(f"expected an (H, W) uint16 or uint8 image, got {image.dtype} {image.shape}")
+        raise ValueError(f"expected an (H, W) uint16, uint8 or float32 image, got {image.dtype} {image.shape}")
     h, w = image.shape
     return {"header": _header(timestamp_ns, frame_id), "height": h, "width": w,
             "encoding": _IMAGE_ENCODINGS[image.dtype], "is_bigendian": 0, "step": w * image.dtype.itemsize,

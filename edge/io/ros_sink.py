@@ -1,22 +1,34 @@
-"""ROS 2 sink: depth, confidence, camera info and point cloud as rmw_zenoh publishers (no bridge).
+"""ROS 2 sink: depth, error probability, confidence, camera info and point cloud as rmw_zenoh
+publishers (no bridge).
 
 `RosSink` declares, on a zenoh session connected to the ``rmw_zenohd`` router (``[ros] router``,
 default ``tcp/localhost:7447``), one ROS node ``/<node>`` (``[ros] node``, default the device name
-with ``-`` -> ``_``; namespace ``/``, enclave ``/``) and five publishers, each with its
-``@ros2_lv`` liveliness token (wire format in `edge.io.ros`):
+with ``-`` -> ``_``; namespace ``/``, enclave ``/``) and eight publishers (seven without
+``[points] publish``), each with its ``@ros2_lv`` liveliness token (wire format in `edge.io.ros`):
 
-==================================  ==========================  ===============================
-topic                               type                        content
-==================================  ==========================  ===============================
-``/<node>/depth/image_rect_raw``    sensor_msgs/msg/Image       16UC1 millimetres, 0 = invalid
-``/<node>/depth/camera_info``       sensor_msgs/msg/CameraInfo  with every depth image
-``/<node>/confidence/image_rect_raw`` sensor_msgs/msg/Image     mono8, higher = more confident
-``/<node>/confidence/camera_info``  sensor_msgs/msg/CameraInfo  with every confidence image
-``/<node>/depth/points``            sensor_msgs/msg/PointCloud2 x y z float32 (``[points]``)
-``/tf``                             tf2_msgs/msg/TFMessage      with every depth map: the frame
-                                                                tree ``<name>_link`` -> optical
-                                                                -> projector optical frame
-==================================  ==========================  ===============================
+====================================  ==========================  ===============================
+topic                                 type                        content
+====================================  ==========================  ===============================
+``/<node>/depth/image_rect_raw``      sensor_msgs/msg/Image       16UC1 millimetres, 0 = invalid
+``/<node>/depth/camera_info``         sensor_msgs/msg/CameraInfo  with every depth image
+``/<node>/error/image_rect_raw``      sensor_msgs/msg/Image       32FC1 estimated P(the pixel's
+                                                                  column, so its depth, is wrong),
+                                                                  NaN = no depth / no estimate;
+                                                                  only with depth maps that have
+                                                                  one (`DepthResult.error`: the
+                                                                  "error" validity rule)
+``/<node>/error/camera_info``         sensor_msgs/msg/CameraInfo  with every error image
+``/<node>/confidence/image_rect_raw`` sensor_msgs/msg/Image       mono8, higher = more confident
+``/<node>/confidence/camera_info``    sensor_msgs/msg/CameraInfo  with every confidence image
+``/<node>/depth/points``              sensor_msgs/msg/PointCloud2 x y z float32 (``[points]``)
+``/tf``                               tf2_msgs/msg/TFMessage      with every depth map: the frame
+                                                                  tree ``<name>_link`` -> optical
+                                                                  -> projector optical frame
+====================================  ==========================  ===============================
+
+The error publishers are declared whatever the rule (as the zenoh sink's ``sl/<device>/error``):
+under the "confidence" rule the topic is listed but nothing is published on it.  Per depth map the
+order is depth, error, confidence, as on zenoh.
 
 Every message has ``header.stamp`` = the time of the stack's last camera frame and ``frame_id``
 ``<name>_optical_frame`` with ``<name>`` the device name with ``-`` -> ``_`` (REP 103 / 105;
@@ -41,6 +53,8 @@ TF = "tf2_msgs/msg/TFMessage"
 TOPICS = {
     "depth": ("depth/image_rect_raw", IMAGE),
     "depth_info": ("depth/camera_info", INFO),
+    "error": ("error/image_rect_raw", IMAGE),
+    "error_info": ("error/camera_info", INFO),
     "confidence": ("confidence/image_rect_raw", IMAGE),
     "confidence_info": ("confidence/camera_info", INFO),
     "points": ("depth/points", CLOUD),
@@ -129,6 +143,9 @@ class RosSink:
         pubs = self._publishers
         pubs["depth"].put(IMAGE, ros.image_message(result.depth_mm, timestamp_ns=t, frame_id=fid))
         pubs["depth_info"].put(INFO, info)
+        if result.error is not None:  # 32FC1, NaN where there is no depth or no estimate
+            pubs["error"].put(IMAGE, ros.image_message(result.error, timestamp_ns=t, frame_id=fid))
+            pubs["error_info"].put(INFO, info)
         pubs["confidence"].put(IMAGE, ros.image_message(result.confidence, timestamp_ns=t, frame_id=fid))
         pubs["confidence_info"].put(INFO, info)
         geometry = result.geometry if result.geometry is not None else self.profile.geometry

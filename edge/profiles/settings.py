@@ -46,7 +46,8 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     validity = "auto"                     # auto | error | confidence: "auto" = the error-probability
                                           # rule for the soft methods without inverse frames
     max_error = 0.01                      # "error" rule: valid where P(wrong column) < max_error
-    levels = "auto"                       # auto | calibration | refit
+    levels = "auto"                       # auto | calibration | refit: "auto" = split per pixel
+                                          # (error rule, binary codes), else calibration
     min_contrast = 0.02                   # "confidence" rule: white - black floor (0..1 scale, < 1);
                                           # dots / line: matched-filter minimum amplitude
     min_confidence = 0.3                  # "confidence" rule: (d2 - d1) / d2 floor (0..1, < 1);

@@ -143,9 +143,10 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
                  buffers: dict | None = None) -> dict[str, Any]:
     """`edge.decode.decoder._decode_error_rule` with the frames on the device (`posterior`'s kernels).
 
-    Levels: "auto" splits each pixel's samples on the device (`posterior.split_levels` +
-    `normalise`: the float32 stack the search reads); "refit" is `refit_stack`; otherwise the
-    calibration levels.  Then the search, the subgrid fit stats (the host fits the noise model
+    Levels (`DecodeSettings.level_source`): "split" (``levels="auto"``, binary codes) splits each
+    pixel's samples on the device (`posterior.split_levels` + `normalise`: the float32 stack the
+    search reads); "refit" is `refit_stack`; otherwise the calibration levels.  Then the search,
+    the subgrid fit stats (the host fits the noise model
     from them: `edge.decode.posterior._noise_from`), the posterior kernel, the gain histogram
     (atomics; the host turns its counts into the not-lit lookup, `posterior.fdr_lookup`) and
     error / valid.  Host <-> device traffic besides the results: the split's compact fit stats
@@ -154,8 +155,8 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     and the (nb + 1,) lookup up.  Returns device arrays candidates / distances (the posterior's:
     re-ordered by likelihood, negative log-likelihoods), confidence, error, column0, column /
     valid (methods "soft" / "hard"; the others get them on the host in `finish`), ``rule``
-    "error", stats (the search's + noise_a, noise_beta, noise_fitted, rule, levels, and
-    ``side_downloads``: (name, bytes) of the intermediate downloads)."""
+    "error", stats (the search's + noise_a, noise_beta, noise_fitted, rule, levels, level_source,
+    and ``side_downloads``: (name, bytes) of the intermediate downloads)."""
     from ...decoder import band_choices
     from ...posterior import (FIT_PIXELS, GAIN_BIN, SKIP_MARGIN, SPLIT_ITERATIONS, TAIL_FLOOR, _noise_from, _steps,
                               fdr_lookup, gain_bins)
@@ -169,10 +170,11 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     like = np.empty((ns, 1, 1), ds.dtype)  # `_noise_from` reads the samples' dtype and count only
     side: list = []
     s_in = s
-    if s.levels == "refit":
+    source = s.level_source("error", code.q)
+    if source == "refit":
         searched = refit_stack(ds, code, s, metric, columns=columns, band=band, stripe=stripe, stream=stream,
                                buffers=buffers)
-    elif s.levels == "auto":
+    elif source == "split":
         step = -(-(h * w) // FIT_PIXELS) if h * w > FIT_PIXELS else 1
         k = -(-(h * w) // step)
         on = buffer(buffers, "split_on", (h, w), np.float32, stream)
@@ -231,7 +233,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
                                                  float(GAIN_BIN), nb, np.float32(s.max_error), err, col0, column,
                                                  valid)
     st = dict(st, noise_a=noise.a, noise_beta=noise.beta, noise_fitted=noise.fitted, rule="error",
-              levels=s_in.levels, side_downloads=side)
+              levels=s_in.levels, level_source=source, side_downloads=side)
     out = {"rule": "error", "candidates": pc, "distances": pd, "confidence": pconf, "error": err, "column0": col0,
            "stats": st, "choices": choices, "rows": columns, "noise": noise}
     if s.method in ("soft", "hard"):
