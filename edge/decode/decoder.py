@@ -228,19 +228,19 @@ def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, nc
     post = posterior(stack.frames, stack.white, stack.black, float(scale), code, found.candidates, noise,
                      choices=band_choices(ncols, band, stripe), inverse=stack.inverse, distances=found.distances)
     column0 = np.ascontiguousarray(post.candidates[..., 0])
-    ok = s.max_error
+    target = s.max_error  # the one error-probability target
     if s.method == "sgm":
-        reg = sgm_stage(stack, code, post.candidates, post.distances, post.error, noise, max_error=ok,
+        reg = sgm_stage(stack, code, post.candidates, post.distances, post.error, noise, max_error=target,
                         rows=ncols, choices=band_choices(ncols, band, stripe), stripe=stripe)
         column, valid = reg.column, reg.valid
         post = post._replace(candidates=reg.candidates, distances=reg.distances, error=reg.error)
     elif s.method in ("soft", "hard"):
-        valid = (post.error < np.float32(ok)) & (column0 >= 0)
+        valid = (post.error < np.float32(target)) & (column0 >= 0)
         column = np.where(valid, column0, -1).astype(np.int32)
     else:
         # the order prior / median filter on P(right): anchors and voters meet the target, a
         # pixel that does not is corrected from its candidates where neighbours support one
-        sp = s.replace(t_high=1.0 - ok, t_low=1.0 - ok)
+        sp = s.replace(t_high=1.0 - target, t_low=1.0 - target)
         spatial = spatial_stage(sp, post.candidates, (1.0 - post.error).astype(np.float32), column0,
                                 column0 >= 0, stripe=stripe)
         column = np.where(spatial.valid, spatial.column, -1).astype(np.int32)

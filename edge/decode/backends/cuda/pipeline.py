@@ -321,9 +321,9 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
         host.update(candidates=reg.candidates, distances=reg.distances, error=reg.error)
     elif rule == "error":
         # `_decode_error_rule`'s spatial methods on P(right), on the host (as the CPU backend)
-        ok = s.max_error
+        target = s.max_error
         column0 = np.ascontiguousarray(host["candidates"][..., 0])
-        spatial = spatial_stage(s.replace(t_high=1.0 - ok, t_low=1.0 - ok), host["candidates"],
+        spatial = spatial_stage(s.replace(t_high=1.0 - target, t_low=1.0 - target), host["candidates"],
                                 (1.0 - host["error"]).astype(np.float32), column0, column0 >= 0, stripe=stripe)
         column = np.where(spatial.valid, spatial.column, -1).astype(np.int32)
         valid = column >= 0
