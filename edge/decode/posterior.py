@@ -889,8 +889,9 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
                float(noise.a), float(noise.beta), packed, flips, flip_bits, flip_w, float(tail_weight), int(wlo), int(whi),
                min(1.0, choices / code.size), bool(np.isin(xtab, (0.0, 1.0)).all()),
                out_cand, out_dist, competitors, gain, conf, contrast)
-    dark = not_lit_probability(gain, code, choices, inverse=has_inv)
-    err = np.where(np.isfinite(gain), 1.0 - (1.0 - dark) * (1.0 - competitors), 1.0).astype(np.float32)
+    fdr, nb = _not_lit_lookup(gain, code, choices, has_inv)
+    err = np.empty((h, w), np.float32)
+    _combine(gain, competitors, fdr, nb, np.float64(GAIN_BIN), err)
     return Posterior(out_cand, out_dist, err, conf, contrast, noise)
 
 
@@ -964,12 +965,75 @@ def not_lit_probability(gain: np.ndarray, code: Code, rows: int, *, inverse: boo
     total = int(ok.sum())
     if total == 0:
         return out
-    median, nb = gain_bins(code, rows, inverse)
-    g = np.maximum(gain[ok], 0.0)
-    idx = np.minimum((np.sqrt(g) / GAIN_BIN).astype(np.int64), nb)
-    counts = np.bincount(idx, minlength=nb + 1)[:nb]
-    out[ok] = fdr_lookup(counts, total, int((g < median).sum()), code, rows, inverse)[idx]
+    fdr, nb = _not_lit_lookup(gain, code, rows, inverse)
+    _dark(gain, fdr, nb, np.float64(GAIN_BIN), out)
     return out
+
+
+@njit(cache=True, inline="always")
+def _gain_bin(g, nb, bin_width):
+    """Bin of a finite gain: ``min(int(sqrt(max(g, 0)) / GAIN_BIN), nb)`` (`gain_bins`)."""
+    g = g if g >= 0.0 else 0.0
+    u = np.sqrt(g) / bin_width
+    return nb if u >= nb else min(np.int64(u), nb)
+
+
+@njit(cache=True, parallel=True)
+def _gain_counts(gain, median, nb, bin_width, out):
+    """out (H, nb + 2) int64 per image row: the finite gains per bin 0..nb-1 (`_gain_bin`; bin
+    nb not counted), their number, and the number below the null median."""
+    height, width = gain.shape
+    for yy in prange(height):
+        row = out[yy]
+        row[:] = 0
+        for xx in range(width):
+            g = gain[yy, xx]
+            if not np.isfinite(g):
+                continue
+            k = _gain_bin(g, nb, bin_width)
+            if k < nb:
+                row[k] += 1
+            row[nb] += 1
+            if (g if g >= 0.0 else 0.0) < median:
+                row[nb + 1] += 1
+
+
+@njit(cache=True, parallel=True)
+def _dark(gain, fdr, nb, bin_width, out):
+    """out (H, W) float64 = fdr[bin of the gain] where the gain is finite (left as it is elsewhere)."""
+    height, width = gain.shape
+    for yy in prange(height):
+        for xx in range(width):
+            g = gain[yy, xx]
+            if np.isfinite(g):
+                out[yy, xx] = fdr[_gain_bin(g, nb, bin_width)]
+
+
+@njit(cache=True, parallel=True)
+def _combine(gain, competitors, fdr, nb, bin_width, out):
+    """out (H, W) float32 P(wrong) = ``1 - (1 - P(not lit)) * (1 - P(confused))`` where the gain
+    is finite, else 1 (P(not lit) = fdr[bin of the gain], `not_lit_probability`)."""
+    height, width = gain.shape
+    for yy in prange(height):
+        for xx in range(width):
+            g = gain[yy, xx]
+            if np.isfinite(g):
+                out[yy, xx] = np.float32(1.0 - (1.0 - fdr[_gain_bin(g, nb, bin_width)]) * (1.0 - competitors[yy, xx]))
+            else:
+                out[yy, xx] = np.float32(1.0)
+
+
+def _not_lit_lookup(gain: np.ndarray, code: Code, rows: int, inverse: bool) -> tuple[np.ndarray, int]:
+    """(fdr (nb + 1,) float64 `fdr_lookup` of this capture's gains, nb): `not_lit_probability`'s
+    model, counted in one pass (`_gain_counts`).  gain: (H, W) float64, NaN where no candidate."""
+    median, nb = gain_bins(code, rows, inverse)
+    counts = np.empty((gain.shape[0], nb + 2), np.int64)
+    _gain_counts(np.ascontiguousarray(gain, np.float64), np.float64(median), np.int64(nb), np.float64(GAIN_BIN), counts)
+    c = counts.sum(axis=0)
+    total = int(c[nb])
+    if total == 0:
+        return np.zeros(nb + 1, np.float64), nb
+    return fdr_lookup(c[:nb], total, int(c[nb + 1]), code, rows, inverse), nb
 
 
 def gain_bins(code: Code, rows: int, inverse: bool = False) -> tuple[float, int]:
