@@ -48,6 +48,13 @@ Three pure steps over numpy arrays (numba kernels, one pass over the pixels each
 
 Units: intensities normalised (1 = full scale of the frame dtype), variances in normalised
 units squared.  Shapes: frames (n, H, W), white / black / outputs (H, W), candidates (H, W, 3).
+
+Implementation (results do not depend on it): `_split_levels` and `_posterior` take `LANES`
+consecutive pixels of a row at a time with branch-free loops over the lanes; each pixel's sums
+still run over its samples in the order above with the same operations, so every value is the
+one-pixel-at-a-time value bit for bit.  A binary code's levels take two values, so the tail's
+flip costs take two logs per pixel; P(not lit) and P(wrong) are one counting and one combining
+pass.  The search's input under the split levels is `normalised32` (float32 frames, one pass).
 """
 
 from __future__ import annotations
