@@ -896,9 +896,9 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
                float(noise.a), float(noise.beta), packed, flips, flip_bits, flip_w, float(tail_weight), int(wlo), int(whi),
                min(1.0, choices / code.size), bool(np.isin(xtab, (0.0, 1.0)).all()),
                out_cand, out_dist, competitors, gain, conf, contrast)
-    fdr, nb = _not_lit_lookup(gain, code, choices, has_inv)
+    fdr, idx = _not_lit_lookup(gain, code, choices, has_inv)
     err = np.empty((h, w), np.float32)
-    _combine(gain, competitors, fdr, nb, np.float64(GAIN_BIN), err)
+    _combine(idx, competitors, fdr, err)
     return Posterior(out_cand, out_dist, err, conf, contrast, noise)
 
 
@@ -972,75 +972,83 @@ def not_lit_probability(gain: np.ndarray, code: Code, rows: int, *, inverse: boo
     total = int(ok.sum())
     if total == 0:
         return out
-    fdr, nb = _not_lit_lookup(gain, code, rows, inverse)
-    _dark(gain, fdr, nb, np.float64(GAIN_BIN), out)
+    fdr, idx = _not_lit_lookup(gain, code, rows, inverse)
+    _dark(idx, fdr, out)
     return out
 
 
-@njit(cache=True, inline="always")
-def _gain_bin(g, nb, bin_width):
-    """Bin of a finite gain: ``min(int(sqrt(max(g, 0)) / GAIN_BIN), nb)`` (`gain_bins`)."""
-    g = g if g >= 0.0 else 0.0
-    u = np.sqrt(g) / bin_width
-    return nb if u >= nb else min(np.int64(u), nb)
-
-
 @njit(cache=True, parallel=True)
-def _gain_counts(gain, median, nb, bin_width, out):
-    """out (H, nb + 2) int64 per image row: the finite gains per bin 0..nb-1 (`_gain_bin`; bin
-    nb not counted), their number, and the number below the null median."""
+def _gain_index(gain, median, nb, bin_width, out_idx, out_below):
+    """out_idx (H, W) int64: the bin ``min(int(sqrt(max(g, 0)) / GAIN_BIN), nb)`` of each finite
+    gain (`gain_bins`), -1 where the gain is not finite; out_below (H,) int64 per row: the finite
+    gains below the null median.  Branch-free per pixel (vectorises)."""
     height, width = gain.shape
     for yy in prange(height):
-        row = out[yy]
-        row[:] = 0
+        row = gain[yy]
+        idx = out_idx[yy]
+        below = 0
         for xx in range(width):
-            g = gain[yy, xx]
-            if not np.isfinite(g):
-                continue
-            k = _gain_bin(g, nb, bin_width)
-            if k < nb:
-                row[k] += 1
-            row[nb] += 1
-            if (g if g >= 0.0 else 0.0) < median:
-                row[nb + 1] += 1
+            g = row[xx]
+            ok = np.isfinite(g)
+            g0 = g if g >= 0.0 else 0.0
+            u = np.sqrt(g0) / bin_width
+            k = nb if not u < nb else np.int64(u)
+            idx[xx] = k if ok else -1
+            below += 1 if (ok and g0 < median) else 0
+        out_below[yy] = below
+
+
+@njit(cache=True)
+def _bin_counts(idx, nb, out):
+    """out (nb + 1,) int64: the pixels per bin 0..nb of idx (H, W) (-1: not counted)."""
+    out[:] = 0
+    for k in idx.ravel():
+        if k >= 0:
+            out[k] += 1
 
 
 @njit(cache=True, parallel=True)
-def _dark(gain, fdr, nb, bin_width, out):
-    """out (H, W) float64 = fdr[bin of the gain] where the gain is finite (left as it is elsewhere)."""
-    height, width = gain.shape
+def _dark(idx, fdr, out):
+    """out (H, W) float64 = fdr[idx] where idx >= 0 (left as it is elsewhere)."""
+    height, width = idx.shape
     for yy in prange(height):
         for xx in range(width):
-            g = gain[yy, xx]
-            if np.isfinite(g):
-                out[yy, xx] = fdr[_gain_bin(g, nb, bin_width)]
+            k = idx[yy, xx]
+            if k >= 0:
+                out[yy, xx] = fdr[k]
 
 
 @njit(cache=True, parallel=True)
-def _combine(gain, competitors, fdr, nb, bin_width, out):
+def _combine(idx, competitors, fdr, out):
     """out (H, W) float32 P(wrong) = ``1 - (1 - P(not lit)) * (1 - P(confused))`` where the gain
-    is finite, else 1 (P(not lit) = fdr[bin of the gain], `not_lit_probability`)."""
-    height, width = gain.shape
+    is finite (idx >= 0; P(not lit) = fdr[idx], `not_lit_probability`), else 1."""
+    height, width = idx.shape
     for yy in prange(height):
+        ir = idx[yy]
+        cr = competitors[yy]
+        orow = out[yy]
         for xx in range(width):
-            g = gain[yy, xx]
-            if np.isfinite(g):
-                out[yy, xx] = np.float32(1.0 - (1.0 - fdr[_gain_bin(g, nb, bin_width)]) * (1.0 - competitors[yy, xx]))
-            else:
-                out[yy, xx] = np.float32(1.0)
+            k = ir[xx]
+            d = fdr[k if k >= 0 else 0]
+            e = np.float32(1.0 - (1.0 - d) * (1.0 - cr[xx]))
+            orow[xx] = e if k >= 0 else np.float32(1.0)
 
 
-def _not_lit_lookup(gain: np.ndarray, code: Code, rows: int, inverse: bool) -> tuple[np.ndarray, int]:
-    """(fdr (nb + 1,) float64 `fdr_lookup` of this capture's gains, nb): `not_lit_probability`'s
-    model, counted in one pass (`_gain_counts`).  gain: (H, W) float64, NaN where no candidate."""
+def _not_lit_lookup(gain: np.ndarray, code: Code, rows: int, inverse: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(fdr (nb + 1,) float64 `fdr_lookup` of this capture's gains, idx (H, W) int64 each pixel's
+    bin, -1 where the gain is not finite): `not_lit_probability`'s model.  gain: (H, W) float64,
+    NaN where no candidate."""
     median, nb = gain_bins(code, rows, inverse)
-    counts = np.empty((gain.shape[0], nb + 2), np.int64)
-    _gain_counts(np.ascontiguousarray(gain, np.float64), np.float64(median), np.int64(nb), np.float64(GAIN_BIN), counts)
-    c = counts.sum(axis=0)
-    total = int(c[nb])
+    idx = np.empty(gain.shape, np.int64)
+    below = np.empty(gain.shape[0], np.int64)
+    _gain_index(np.ascontiguousarray(gain, np.float64), np.float64(median), np.int64(nb), np.float64(GAIN_BIN),
+                idx, below)
+    counts = np.empty(nb + 1, np.int64)
+    _bin_counts(idx, np.int64(nb), counts)
+    total = int(counts.sum())
     if total == 0:
-        return np.zeros(nb + 1, np.float64), nb
-    return fdr_lookup(c[:nb], total, int(c[nb + 1]), code, rows, inverse), nb
+        return np.zeros(nb + 1, np.float64), idx
+    return fdr_lookup(counts[:nb], total, int(below.sum()), code, rows, inverse), idx
 
 
 def gain_bins(code: Code, rows: int, inverse: bool = False) -> tuple[float, int]:
