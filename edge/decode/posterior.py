@@ -62,7 +62,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import get_num_threads, njit, prange
 
 from ..codes import Code
 
@@ -600,18 +600,31 @@ def _lane_flat(R, sr, n, a, beta, S, out_l):
             out_l[l] += e * e * r0[l] + l0[l]
 
 
+@njit(cache=True, inline="always")
+def _interleaved(j, chunk, k):
+    """Row of iteration j of a parallel loop over ``chunk * k`` iterations on k threads: a
+    thread's contiguous share of iterations (about ``chunk``) gets every k-th row, so rows of
+    unequal cost (a region of hard pixels) are spread over the threads (>= height: none)."""
+    return (j % chunk) * k + j // chunk
+
+
 @njit(cache=True, parallel=True)
 def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta, packed, flips, flip_bits, flip_w,
-               tail_weight, wlo, whi, in_band, binary,
+               tail_weight, wlo, whi, in_band, binary, threads,
                out_cand, out_dist, out_err, out_gain, out_conf, out_contrast):
     """Step 3 per pixel, LANES pixels of a row at a time: the hypotheses' NLLs lane-parallel
     (`_lane_nll`, `_lane_flat`; `_nll` per lane where the code is not binary), then each pixel's
-    ordering, odds and tail mass."""
+    ordering, odds and tail mass.  Rows interleaved over the `threads` threads (`_interleaved`:
+    the tail mass makes some regions far costlier than others)."""
     n, height, width = frames.shape
     m = n + 2
     L = LANES
     use_tail = flips.size > 0
-    for yy in prange(height):
+    chunk = (height + threads - 1) // threads
+    for it in prange(chunk * threads):
+        yy = _interleaved(it, chunk, threads)
+        if yy >= height:
+            continue
         R = np.empty((m, L), np.float64)
         X = np.empty((n, L), np.float64)
         S = np.empty((9, L), np.float64)
@@ -894,7 +907,7 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     _posterior(_samples(frames, inverse), white, black, np.float64(scale),
                xtab, code.n, cand, searched,
                float(noise.a), float(noise.beta), packed, flips, flip_bits, flip_w, float(tail_weight), int(wlo), int(whi),
-               min(1.0, choices / code.size), bool(np.isin(xtab, (0.0, 1.0)).all()),
+               min(1.0, choices / code.size), bool(np.isin(xtab, (0.0, 1.0)).all()), max(1, get_num_threads()),
                out_cand, out_dist, competitors, gain, conf, contrast)
     fdr, idx = _not_lit_lookup(gain, code, choices, has_inv)
     err = np.empty((h, w), np.float32)
