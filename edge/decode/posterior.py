@@ -53,8 +53,9 @@ Implementation (results do not depend on it): `_split_levels` and `_posterior` t
 consecutive pixels of a row at a time with branch-free loops over the lanes; each pixel's sums
 still run over its samples in the order above with the same operations, so every value is the
 one-pixel-at-a-time value bit for bit.  A binary code's levels take two values, so the tail's
-flip costs take two logs per pixel; P(not lit) and P(wrong) are one counting and one combining
-pass.  The search's input under the split levels is `normalised32` (float32 frames, one pass).
+flip costs take two logs per pixel; P(not lit) and P(wrong) are one binning and one combining
+pass; `_posterior` interleaves the rows over the threads (the tail mass makes hard regions far
+costlier).  The search's input under the split levels is `normalised32` (float32 frames, one pass).
 """
 
 from __future__ import annotations
