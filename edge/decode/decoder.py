@@ -55,7 +55,7 @@ from .backends import Q_SCALE
 from .backends import get as get_backend
 from .inputs import validate
 from .levels import estimate_levels
-from .posterior import Noise, fit_noise, posterior, split_levels
+from .posterior import Noise, fit_noise, normalised32, posterior, split_levels
 from .propagate import propagate
 from .search import METRICS, band_args, check_call, search_candidates
 from .settings import DEFAULT_SETTINGS, METHODS, DecodeSettings
@@ -216,8 +216,7 @@ def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, nc
     elif source == "split":
         on, off, first_noise = split_levels(stack.frames, stack.white, stack.black, float(scale),
                                             prior=(s.sigma_r, s.sigma_s), inverse=stack.inverse)
-        inv = None if stack.inverse is None else stack.inverse.astype(np.float32) * scale
-        searched = validate(stack.frames.astype(np.float32) * scale, on, off, code, inverse=inv)
+        searched = split_capture(stack, on, off)
         s = s.replace(sigma_r=float(np.sqrt(first_noise.a)), sigma_s=float(np.sqrt(first_noise.beta)))
     else:
         searched = stack
@@ -265,6 +264,19 @@ def sgm_stage(stack: CodedCapture, code: Code, candidates: np.ndarray, distances
     return reg._replace(candidates=np.ascontiguousarray(reg.candidates[..., :3]),
                         distances=np.ascontiguousarray(reg.distances[..., :3]),
                         costs=np.ascontiguousarray(reg.costs[..., [0, 1, 2, 4]]))
+
+
+def split_capture(stack: CodedCapture, on: np.ndarray, off: np.ndarray) -> CodedCapture:
+    """The search's input under the split levels: the frames (and inverse frames) as float32
+    normalised intensities (`posterior.normalised32`), white / black = the (H, W) float32 split
+    levels on / off.  What `inputs.validate` would return for these arrays (float32 samples of
+    a validated integer or float capture are finite and >= 0; its white > black check is kept)."""
+    if not np.greater(on, off).any():
+        raise ValueError("white/black: expected white brighter than black somewhere, got white <= black everywhere")
+    scale = np.float32(stack.scale)
+    inv = None if stack.inverse is None else normalised32(stack.inverse, scale)
+    return CodedCapture(frames=normalised32(stack.frames, scale), white=np.ascontiguousarray(on),
+                        black=np.ascontiguousarray(off), inverse=inv, code=stack.code, bit_depth=None)
 
 
 def decode_capture(capture: CodedCapture, code: Code | None = None, *, settings=None, **overrides) -> Decoded:

@@ -48,6 +48,14 @@ Three pure steps over numpy arrays (numba kernels, one pass over the pixels each
 
 Units: intensities normalised (1 = full scale of the frame dtype), variances in normalised
 units squared.  Shapes: frames (n, H, W), white / black / outputs (H, W), candidates (H, W, 3).
+
+Implementation (results do not depend on it): `_split_levels` and `_posterior` take `LANES`
+consecutive pixels of a row at a time with branch-free loops over the lanes; each pixel's sums
+still run over its samples in the order above with the same operations, so every value is the
+one-pixel-at-a-time value bit for bit.  A binary code's levels take two values, so the tail's
+flip costs take two logs per pixel; P(not lit) and P(wrong) are one binning and one combining
+pass; `_posterior` interleaves the rows over the threads (the tail mass makes hard regions far
+costlier).  The search's input under the split levels is `normalised32` (float32 frames, one pass).
 """
 
 from __future__ import annotations
@@ -55,7 +63,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import get_num_threads, njit, prange
 
 from ..codes import Code
 
@@ -76,6 +84,10 @@ FIT_PIXELS = 40000
 NOISE_BINS = 16
 #: Largest log-odds exponent evaluated (exp(-x/2) below e**-350 is 0 in float64 anyway).
 _CLIP = 700.0
+#: Pixels of one row `_posterior` and `_split_levels` process together (consecutive x), a
+#: compile-time constant so that the loops over lanes vectorise.  Every lane's sums still run
+#: over its samples in order, so the results are those of one pixel at a time, bit for bit.
+LANES = 16
 
 
 class Noise(NamedTuple):
@@ -131,52 +143,136 @@ def _above(buf, m, t):
     return sh, kh
 
 
+@njit(cache=True, inline="always")
+def _lane_above(R, m, t, sh, kh):
+    """`_above` of every lane: sh (LANES,) float64, kh (LANES,) int64 = (sum, count) of lane l's
+    m samples above t[l], summed in the samples' order (adding 0.0 for a sample at or below the
+    threshold leaves the sum of non-negative samples unchanged: `_above`'s values bit for bit)."""
+    L = R.shape[1]
+    for l in range(L):
+        sh[l] = 0.0
+        kh[l] = 0
+    for i in range(m):
+        for l in range(L):
+            v = R[i, l]
+            up = v > t[l]
+            sh[l] += v if up else 0.0
+            kh[l] += 1 if up else 0
+
+
 @njit(cache=True, parallel=True)
 def _split_levels(frames, white, black, scale, out_hi, out_lo, out_s2, out_mu):
+    """Step 1 per pixel, LANES pixels of a row at a time (every lane runs the same Lloyd steps as
+    one pixel alone: the sums in the samples' order, a lane that has converged is left as it is)."""
     n, height, width = frames.shape
     m = n + 2
+    L = LANES
     for yy in prange(height):
-        block = np.empty((width, m), np.float64)
-        _row_block(frames, white, black, scale, yy, block)
-        for xx in range(width):
-            buf = block[xx]
+        R = np.empty((m, L), np.float64)
+        total = np.empty(L, np.float64)
+        top = np.empty(L, np.float64)
+        bottom = np.empty(L, np.float64)
+        t = np.empty(L, np.float64)
+        t2 = np.empty(L, np.float64)
+        hi = np.empty(L, np.float64)
+        lo = np.empty(L, np.float64)
+        ssr = np.empty(L, np.float64)
+        sh = np.empty(L, np.float64)
+        sh2 = np.empty(L, np.float64)
+        kh = np.empty(L, np.int64)
+        kh2 = np.empty(L, np.int64)
+        count_hi = np.empty(L, np.int64)
+        live = np.empty(L, np.bool_)
+        clip = np.empty(L, np.bool_)
+        for x0 in range(0, width, L):
+            _lane_samples(frames, white, black, scale, yy, x0, R)
             # two-means by Lloyd's iterations from the calibration midpoint (SPLIT_ITERATIONS, or
             # until the split stops changing); from the samples' mid-range where white <= black
-            top = buf[0]
-            bottom = buf[0]
-            total = 0.0
+            for l in range(L):
+                total[l] = 0.0
+                top[l] = R[0, l]
+                bottom[l] = R[0, l]
             for i in range(m):
-                v = buf[i]
-                total += v
-                top = max(top, v)
-                bottom = min(bottom, v)
-            t = 0.5 * (buf[n] + buf[n + 1]) if buf[n] > buf[n + 1] else 0.5 * (top + bottom)
-            hi = top
-            lo = bottom
-            count_hi = -1
+                for l in range(L):
+                    v = R[i, l]
+                    total[l] += v
+                    top[l] = max(top[l], v)
+                    bottom[l] = min(bottom[l], v)
+            for l in range(L):
+                w_, b_ = R[n, l], R[n + 1, l]
+                t[l] = 0.5 * (w_ + b_) if w_ > b_ else 0.5 * (top[l] + bottom[l])
+                hi[l] = top[l]
+                lo[l] = bottom[l]
+                count_hi[l] = -1
+                live[l] = True
             for _ in range(SPLIT_ITERATIONS):
-                sh, kh = _above(buf, m, t)
-                if kh == 0 or kh == m:  # one class: split at the mid-range instead
-                    t = 0.5 * (top + bottom)
-                    sh, kh = _above(buf, m, t)
-                    if kh == 0 or kh == m:
-                        break
-                hi = sh / kh
-                lo = (total - sh) / (m - kh)
-                t = 0.5 * (hi + lo)
-                if kh == count_hi:
+                _lane_above(R, m, t, sh, kh)
+                again = False
+                for l in range(L):
+                    one_class = live[l] and (kh[l] == 0 or kh[l] == m)
+                    if one_class:  # one class: split at the mid-range instead
+                        t[l] = 0.5 * (top[l] + bottom[l])
+                    again = again or one_class
+                    t2[l] = t[l]
+                if again:
+                    _lane_above(R, m, t2, sh2, kh2)
+                for l in range(L):
+                    if not live[l]:
+                        continue
+                    s_, k_ = sh[l], kh[l]
+                    if k_ == 0 or k_ == m:
+                        s_, k_ = sh2[l], kh2[l]
+                        if k_ == 0 or k_ == m:
+                            live[l] = False
+                            continue
+                    hi[l] = s_ / k_
+                    lo[l] = (total[l] - s_) / (m - k_)
+                    t[l] = 0.5 * (hi[l] + lo[l])
+                    if k_ == count_hi[l]:
+                        live[l] = False
+                        continue
+                    count_hi[l] = k_
+                if not live.any():
                     break
-                count_hi = kh
-            ssr = 0.0
+            for l in range(L):
+                ssr[l] = 0.0
+                clip[l] = False
             for i in range(m):
-                e = buf[i] - (hi if buf[i] > t else lo)
-                ssr += e * e
-            out_s2[yy, xx] = ssr / (m - 2) if not _clipped(buf, m) else np.nan
-            out_mu[yy, xx] = total / m
-            if hi - lo < 1e-6:
-                hi = lo + 1e-6
-            out_hi[yy, xx] = hi
-            out_lo[yy, xx] = lo
+                for l in range(L):
+                    v = R[i, l]
+                    h_, o_ = hi[l], lo[l]
+                    e = v - (h_ if v > t[l] else o_)
+                    ssr[l] += e * e
+                    clip[l] = clip[l] or v <= 0.0 or v >= 1.0
+            for l in range(min(L, width - x0)):
+                xx = x0 + l
+                out_s2[yy, xx] = ssr[l] / (m - 2) if not clip[l] else np.nan
+                out_mu[yy, xx] = total[l] / m
+                h_ = hi[l]
+                if h_ - lo[l] < 1e-6:
+                    h_ = lo[l] + 1e-6
+                out_hi[yy, xx] = h_
+                out_lo[yy, xx] = lo[l]
+
+
+@njit(cache=True, parallel=True)
+def _normalised32(frames, scale, out):
+    n, height, width = frames.shape
+    for yy in prange(height):
+        for i in range(n):
+            src = frames[i, yy]
+            dst = out[i, yy]
+            for xx in range(width):
+                dst[xx] = np.float32(src[xx]) * scale
+
+
+def normalised32(frames: np.ndarray, scale: float) -> np.ndarray:
+    """(n, H, W) float32 normalised frames: ``float32(raw) * float32(scale)``, the values of numpy's
+    ``frames.astype(np.float32) * np.float32(scale)`` bit for bit, in one parallel pass (the
+    search's input under the split levels).  frames: (n, H, W) uint8 / uint16 / float32 / float64."""
+    out = np.empty(frames.shape, np.float32)
+    _normalised32(np.ascontiguousarray(frames), np.float32(scale), out)
+    return out
 
 
 def split_levels(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, *,
@@ -389,92 +485,270 @@ def _nll(buf, xs, row, n, xtab, a, beta, use_row):
     return total, maha, c
 
 
+@njit(cache=True, inline="always")
+def _lane_samples(frames, white, black, scale, yy, x0, R):
+    """R (m, LANES) float64 = the m normalised samples (``float64(raw) * scale``, as `_row_block`)
+    of pixels x0 .. x0 + LANES - 1 of row yy; lanes past the row's end repeat its last pixel."""
+    n, _, width = frames.shape
+    L = R.shape[1]
+    if x0 + L <= width:
+        for i in range(n):
+            row = frames[i, yy, x0:x0 + L]
+            for l in range(L):
+                R[i, l] = row[l] * scale
+        wr = white[yy, x0:x0 + L]
+        br = black[yy, x0:x0 + L]
+        for l in range(L):
+            R[n, l] = wr[l] * scale
+            R[n + 1, l] = br[l] * scale
+    else:
+        for l in range(L):
+            xx = min(x0 + l, width - 1)
+            for i in range(n):
+                R[i, l] = frames[i, yy, xx] * scale
+            R[n, l] = white[yy, xx] * scale
+            R[n + 1, l] = black[yy, xx] * scale
+
+
+@njit(cache=True, inline="always")
+def _lane_nll(R, sr, X, rows, n, xtab, a, beta, S, out_l, out_q, out_c):
+    """`_nll` of codebook row ``rows[l]`` (>= 0) of every lane of a binary code (symbols 0 / 1),
+    lane-parallel: each lane's sums run over the samples in `_fit` / `_nll`'s order with the same
+    operations, so out_l / out_q / out_c (LANES,) are theirs bit for bit.  sr (LANES,): the sum of
+    each lane's m samples (`_fit`'s ``sr``); scratch X (n, LANES), S (9, LANES) float64."""
+    m = n + 2
+    L = R.shape[1]
+    for l in range(L):
+        r = rows[l]
+        for i in range(n):
+            X[i, l] = xtab[r, i]
+    sx = S[0]
+    sxx = S[1]
+    sxr = S[2]
+    for l in range(L):
+        sx[l] = 1.0
+        sxx[l] = 1.0
+        sxr[l] = R[n, l]
+    for i in range(n):
+        for l in range(L):
+            x = X[i, l]
+            sx[l] += x
+            sxx[l] += x * x
+            sxr[l] += x * R[i, l]
+    bb = S[3]
+    b1 = S[4]
+    r0 = S[5]
+    r1 = S[6]
+    l0 = S[7]
+    l1 = S[8]
+    for l in range(L):
+        den = m * sxx[l] - sx[l] * sx[l]
+        c = (m * sxr[l] - sx[l] * sr[l]) / den if den > 0 else 0.0
+        if c < 0.0:
+            c = 0.0
+        b = (sr[l] - c * sx[l]) / m
+        bb[l] = b
+        b1[l] = b + c
+        out_c[l] = c
+    for l in range(L):
+        v0 = a + beta * (bb[l] if bb[l] > 0.0 else 0.0)
+        v1 = a + beta * (b1[l] if b1[l] > 0.0 else 0.0)
+        l0[l] = np.log(v0)
+        l1[l] = np.log(v1)
+        r0[l] = 1.0 / v0
+        r1[l] = 1.0 / v1
+        out_l[l] = 0.0
+        out_q[l] = 0.0
+    for i in range(n):
+        for l in range(L):
+            # both operands loaded before the select: a branch-free loop that vectorises
+            one = X[i, l] != 0.0
+            mu0, mu1, w0, w1, g0, g1 = bb[l], b1[l], r0[l], r1[l], l0[l], l1[l]
+            e = R[i, l] - (mu1 if one else mu0)
+            q = e * e * (w1 if one else w0)
+            out_l[l] += q + (g1 if one else g0)
+            out_q[l] += q
+    for l in range(L):  # white (x = 1), then black (x = 0)
+        e = R[n, l] - b1[l]
+        q = e * e * r1[l]
+        out_l[l] += q + l1[l]
+        out_q[l] += q
+        e = R[n + 1, l] - bb[l]
+        q = e * e * r0[l]
+        out_l[l] += q + l0[l]
+        out_q[l] += q
+
+
+@njit(cache=True, inline="always")
+def _lane_flat(R, sr, n, a, beta, S, out_l):
+    """`_nll`'s flat hypothesis (one level, the mean) of every lane, lane-parallel (its values bit
+    for bit; sr as in `_lane_nll`; scratch S (9, LANES))."""
+    m = n + 2
+    L = R.shape[1]
+    bb = S[0]
+    r0 = S[1]
+    l0 = S[2]
+    for l in range(L):
+        b = sr[l] / m
+        bb[l] = b
+        v0 = a + beta * (b if b > 0.0 else 0.0)
+        l0[l] = np.log(v0)
+        r0[l] = 1.0 / v0
+        out_l[l] = 0.0
+    for i in range(m):
+        for l in range(L):
+            e = R[i, l] - bb[l]
+            out_l[l] += e * e * r0[l] + l0[l]
+
+
+@njit(cache=True, inline="always")
+def _interleaved(j, chunk, k):
+    """Row of iteration j of a parallel loop over ``chunk * k`` iterations on k threads: a
+    thread's contiguous share of iterations (about ``chunk``) gets every k-th row, so rows of
+    unequal cost (a region of hard pixels) are spread over the threads (>= height: none)."""
+    return (j % chunk) * k + j // chunk
+
+
 @njit(cache=True, parallel=True)
 def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta, packed, flips, flip_bits, flip_w,
-               tail_weight, wlo, whi, in_band,
+               tail_weight, wlo, whi, in_band, binary, threads,
                out_cand, out_dist, out_err, out_gain, out_conf, out_contrast):
+    """Step 3 per pixel, LANES pixels of a row at a time: the hypotheses' NLLs lane-parallel
+    (`_lane_nll`, `_lane_flat`; `_nll` per lane where the code is not binary), then each pixel's
+    ordering, odds and tail mass.  Rows interleaved over the `threads` threads (`_interleaved`:
+    the tail mass makes some regions far costlier than others)."""
     n, height, width = frames.shape
     m = n + 2
+    L = LANES
     use_tail = flips.size > 0
-    for yy in prange(height):
-        block = np.empty((width, m), np.float64)
-        _row_block(frames, white, black, scale, yy, block)
+    chunk = (height + threads - 1) // threads
+    for it in prange(chunk * threads):
+        yy = _interleaved(it, chunk, threads)
+        if yy >= height:
+            continue
+        R = np.empty((m, L), np.float64)
+        X = np.empty((n, L), np.float64)
+        S = np.empty((9, L), np.float64)
+        buf = np.empty(m, np.float64)
         xs = np.empty(m, np.float64)
         delta = np.empty(n, np.float64)
         sorted_d = np.empty(n, np.float64)
+        sr = np.empty(L, np.float64)
+        rows = np.empty((3, L), np.int32)
+        scored = np.empty((3, L), np.bool_)
+        need = np.empty(3, np.bool_)
+        hl = np.empty((3, L), np.float64)
+        hq = np.empty((3, L), np.float64)
+        hc = np.empty((3, L), np.float64)
+        flat = np.empty(L, np.float64)
         lk = np.empty(3, np.float64)
         mk = np.empty(3, np.float64)
         ck = np.empty(3, np.float64)
         rk = np.empty(3, np.int32)
         rest = np.empty(3, np.int32)
-        for xx in range(width):
-            buf = block[xx]
-            count = 0
-            unscored = 0
+        for x0 in range(0, width, L):
+            _lane_samples(frames, white, black, scale, yy, x0, R)
+            for l in range(L):
+                sr[l] = 0.0
+            for i in range(m):
+                for l in range(L):
+                    sr[l] += R[i, l]
+            any_scored = False
             for k in range(3):
-                row = cand[yy, xx, k]
-                if row < 0:
+                need[k] = False
+                for l in range(L):
+                    xx = min(x0 + l, width - 1)
+                    row = cand[yy, xx, k]
+                    ok = row >= 0 and not (k > 0 and searched[yy, xx, k] - searched[yy, xx, 0] > SKIP_MARGIN)
+                    scored[k, l] = ok
+                    rows[k, l] = row if ok else 0
+                    need[k] = need[k] or ok
+                any_scored = any_scored or need[k]
+            if any_scored:
+                for k in range(3):
+                    if not need[k]:  # no lane rescores this candidate
+                        continue
+                    if binary:
+                        _lane_nll(R, sr, X, rows[k], n, xtab, a, beta, S, hl[k], hq[k], hc[k])
+                    else:
+                        for l in range(L):
+                            if scored[k, l]:
+                                for i in range(m):
+                                    buf[i] = R[i, l]
+                                tl, tq, tc = _nll(buf, xs, rows[k, l], n, xtab, a, beta, True)
+                                hl[k, l] = tl
+                                hq[k, l] = tq
+                                hc[k, l] = tc
+                _lane_flat(R, sr, n, a, beta, S, flat)
+            for l in range(min(L, width - x0)):
+                xx = x0 + l
+                count = 0
+                unscored = 0
+                for k in range(3):
+                    row = cand[yy, xx, k]
+                    if row < 0:
+                        continue
+                    if not scored[k, l]:
+                        rest[unscored] = row  # posterior odds far below any target: not rescored
+                        unscored += 1
+                        continue
+                    total = hl[k, l]
+                    # insertion by likelihood (ties keep the search's order)
+                    j = count
+                    while j > 0 and lk[j - 1] > total:
+                        lk[j] = lk[j - 1]
+                        mk[j] = mk[j - 1]
+                        ck[j] = ck[j - 1]
+                        rk[j] = rk[j - 1]
+                        j -= 1
+                    lk[j] = total
+                    mk[j] = hq[k, l]
+                    ck[j] = hc[k, l]
+                    rk[j] = row
+                    count += 1
+                for k in range(3):
+                    if k < count:
+                        out_cand[yy, xx, k] = rk[k]
+                        out_dist[yy, xx, k] = lk[k]
+                    elif k < count + unscored:
+                        out_cand[yy, xx, k] = rest[k - count]
+                        out_dist[yy, xx, k] = np.inf
+                    else:
+                        out_cand[yy, xx, k] = -1
+                        out_dist[yy, xx, k] = np.inf
+                if count == 0:
+                    out_err[yy, xx] = 1.0
+                    out_gain[yy, xx] = np.nan
+                    out_conf[yy, xx] = 0.0
+                    out_contrast[yy, xx] = 0.0
                     continue
-                if k > 0 and searched[yy, xx, k] - searched[yy, xx, 0] > SKIP_MARGIN:
-                    rest[unscored] = row  # posterior odds far below any target: not rescored
-                    unscored += 1
-                    continue
-                total, maha, c = _nll(buf, xs, row, n, xtab, a, beta, True)
-                # insertion by likelihood (ties keep the search's order)
-                j = count
-                while j > 0 and lk[j - 1] > total:
-                    lk[j] = lk[j - 1]
-                    mk[j] = mk[j - 1]
-                    ck[j] = ck[j - 1]
-                    rk[j] = rk[j - 1]
-                    j -= 1
-                lk[j] = total
-                mk[j] = maha
-                ck[j] = c
-                rk[j] = row
-                count += 1
-            for k in range(3):
-                if k < count:
-                    out_cand[yy, xx, k] = rk[k]
-                    out_dist[yy, xx, k] = lk[k]
-                elif k < count + unscored:
-                    out_cand[yy, xx, k] = rest[k - count]
-                    out_dist[yy, xx, k] = np.inf
+                out_gain[yy, xx] = flat[l] - lk[0]
+                far = 0.0
+                every = 0.0
+                ek = 0.0
+                for k in range(1, count):
+                    ek = np.exp(-min((lk[k] - lk[0]) * 0.5, _CLIP))
+                    every += ek
+                    if abs(rk[k] - rk[0]) > 1:
+                        far += ek
+                # the codewords beyond the top three: none where the search found fewer (a narrow
+                # band holds no more), negligible where even the third is (the search ranks the rest
+                # below it), else `_tail_mass` scaled to the share of the codebook the band allows
+                if use_tail and count == 3 and flips.size * tail_weight * ek > TAIL_FLOOR and far < 1.0 + every - far:
+                    for i in range(m):
+                        buf[i] = R[i, l]
+                    tail = in_band * _tail_mass(buf, xs, rk, count, n, nbits, xtab, a, beta, packed, flips, flip_bits,
+                                                flip_w, tail_weight, wlo, whi, delta, sorted_d)
+                    far += tail
+                    every += tail
+                out_err[yy, xx] = far / (1.0 + every)
+                if count > 1:
+                    out_conf[yy, xx] = (mk[1] - mk[0]) / mk[1] if mk[1] > mk[0] else 0.0
+                elif unscored > 0:  # d2 >= d1 + SKIP_MARGIN: the ratio's lower bound
+                    out_conf[yy, xx] = SKIP_MARGIN / (mk[0] + SKIP_MARGIN)
                 else:
-                    out_cand[yy, xx, k] = -1
-                    out_dist[yy, xx, k] = np.inf
-            if count == 0:
-                out_err[yy, xx] = 1.0
-                out_gain[yy, xx] = np.nan
-                out_conf[yy, xx] = 0.0
-                out_contrast[yy, xx] = 0.0
-                continue
-            l0, _, _ = _nll(buf, xs, 0, n, xtab, a, beta, False)
-            out_gain[yy, xx] = l0 - lk[0]
-            far = 0.0
-            every = 0.0
-            ek = 0.0
-            for k in range(1, count):
-                ek = np.exp(-min((lk[k] - lk[0]) * 0.5, _CLIP))
-                every += ek
-                if abs(rk[k] - rk[0]) > 1:
-                    far += ek
-            # the codewords beyond the top three: none where the search found fewer (a narrow
-            # band holds no more), negligible where even the third is (the search ranks the rest
-            # below it), else `_tail_mass` scaled to the share of the codebook the band allows
-            if use_tail and count == 3 and flips.size * tail_weight * ek > TAIL_FLOOR and far < 1.0 + every - far:
-                tail = in_band * _tail_mass(buf, xs, rk, count, n, nbits, xtab, a, beta, packed, flips, flip_bits, flip_w,
-                                            tail_weight, wlo, whi, delta, sorted_d)
-                far += tail
-                every += tail
-            out_err[yy, xx] = far / (1.0 + every)
-            if count > 1:
-                out_conf[yy, xx] = (mk[1] - mk[0]) / mk[1] if mk[1] > mk[0] else 0.0
-            elif unscored > 0:  # d2 >= d1 + SKIP_MARGIN: the ratio's lower bound
-                out_conf[yy, xx] = SKIP_MARGIN / (mk[0] + SKIP_MARGIN)
-            else:
-                out_conf[yy, xx] = 0.0
-            out_contrast[yy, xx] = ck[0]
+                    out_conf[yy, xx] = 0.0
+                out_contrast[yy, xx] = ck[0]
 
 
 @njit(cache=True, inline="always")
@@ -486,14 +760,22 @@ def _tail_mass(buf, xs, rk, count, n, nbits, xtab, a, beta, packed, flips, flip_
     sum runs over `_flips`' evenly spaced sample of those h, times `weight` (their number / the
     sample's), minus the scored candidates' own terms."""
     b, c = _fit(buf, xs, rk[0], n, xtab)
+    # binary symbols: the levels b + c * x are b + c * 0 and b + c * 1, two variances, two logs
+    m0 = b + c * 0.0
+    m1 = b + c * 1.0
+    v0 = a + beta * (m0 if m0 > 0.0 else 0.0)
+    v1 = a + beta * (m1 if m1 > 0.0 else 0.0)
+    g0 = np.log(v0)
+    g1 = np.log(v1)
     for i in range(n):  # a flipped bit takes the sample's symbol x to 1 - x
-        mo = b + c * xs[i]
-        mf = b + c * (1.0 - xs[i])
-        vo = a + beta * (mo if mo > 0.0 else 0.0)
-        vf = a + beta * (mf if mf > 0.0 else 0.0)
+        one = xs[i] != 0.0
+        mo = m1 if one else m0
+        mf = m0 if one else m1
+        vo = v1 if one else v0
+        vf = v0 if one else v1
         eo = buf[i] - mo
         ef = buf[i] - mf
-        delta[i] = (ef * ef / vf + np.log(vf)) - (eo * eo / vo + np.log(vo))
+        delta[i] = (ef * ef / vf + (g0 if one else g1)) - (eo * eo / vo + (g1 if one else g0))
     for i in range(nbits):  # with inverse frames a bit flips a pattern and an inverse sample
         if n > nbits:
             delta[i] += delta[i + nbits]
@@ -626,10 +908,11 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     _posterior(_samples(frames, inverse), white, black, np.float64(scale),
                xtab, code.n, cand, searched,
                float(noise.a), float(noise.beta), packed, flips, flip_bits, flip_w, float(tail_weight), int(wlo), int(whi),
-               min(1.0, choices / code.size),
+               min(1.0, choices / code.size), bool(np.isin(xtab, (0.0, 1.0)).all()), max(1, get_num_threads()),
                out_cand, out_dist, competitors, gain, conf, contrast)
-    dark = not_lit_probability(gain, code, choices, inverse=has_inv)
-    err = np.where(np.isfinite(gain), 1.0 - (1.0 - dark) * (1.0 - competitors), 1.0).astype(np.float32)
+    fdr, idx = _not_lit_lookup(gain, code, choices, has_inv)
+    err = np.empty((h, w), np.float32)
+    _combine(idx, competitors, fdr, err)
     return Posterior(out_cand, out_dist, err, conf, contrast, noise)
 
 
@@ -703,12 +986,83 @@ def not_lit_probability(gain: np.ndarray, code: Code, rows: int, *, inverse: boo
     total = int(ok.sum())
     if total == 0:
         return out
-    median, nb = gain_bins(code, rows, inverse)
-    g = np.maximum(gain[ok], 0.0)
-    idx = np.minimum((np.sqrt(g) / GAIN_BIN).astype(np.int64), nb)
-    counts = np.bincount(idx, minlength=nb + 1)[:nb]
-    out[ok] = fdr_lookup(counts, total, int((g < median).sum()), code, rows, inverse)[idx]
+    fdr, idx = _not_lit_lookup(gain, code, rows, inverse)
+    _dark(idx, fdr, out)
     return out
+
+
+@njit(cache=True, parallel=True)
+def _gain_index(gain, median, nb, bin_width, out_idx, out_below):
+    """out_idx (H, W) int64: the bin ``min(int(sqrt(max(g, 0)) / GAIN_BIN), nb)`` of each finite
+    gain (`gain_bins`), -1 where the gain is not finite; out_below (H,) int64 per row: the finite
+    gains below the null median.  Branch-free per pixel (vectorises)."""
+    height, width = gain.shape
+    for yy in prange(height):
+        row = gain[yy]
+        idx = out_idx[yy]
+        below = 0
+        for xx in range(width):
+            g = row[xx]
+            ok = np.isfinite(g)
+            g0 = g if g >= 0.0 else 0.0
+            u = np.sqrt(g0) / bin_width
+            k = nb if not u < nb else np.int64(u)
+            idx[xx] = k if ok else -1
+            below += 1 if (ok and g0 < median) else 0
+        out_below[yy] = below
+
+
+@njit(cache=True)
+def _bin_counts(idx, nb, out):
+    """out (nb + 1,) int64: the pixels per bin 0..nb of idx (H, W) (-1: not counted)."""
+    out[:] = 0
+    for k in idx.ravel():
+        if k >= 0:
+            out[k] += 1
+
+
+@njit(cache=True, parallel=True)
+def _dark(idx, fdr, out):
+    """out (H, W) float64 = fdr[idx] where idx >= 0 (left as it is elsewhere)."""
+    height, width = idx.shape
+    for yy in prange(height):
+        for xx in range(width):
+            k = idx[yy, xx]
+            if k >= 0:
+                out[yy, xx] = fdr[k]
+
+
+@njit(cache=True, parallel=True)
+def _combine(idx, competitors, fdr, out):
+    """out (H, W) float32 P(wrong) = ``1 - (1 - P(not lit)) * (1 - P(confused))`` where the gain
+    is finite (idx >= 0; P(not lit) = fdr[idx], `not_lit_probability`), else 1."""
+    height, width = idx.shape
+    for yy in prange(height):
+        ir = idx[yy]
+        cr = competitors[yy]
+        orow = out[yy]
+        for xx in range(width):
+            k = ir[xx]
+            d = fdr[k if k >= 0 else 0]
+            e = np.float32(1.0 - (1.0 - d) * (1.0 - cr[xx]))
+            orow[xx] = e if k >= 0 else np.float32(1.0)
+
+
+def _not_lit_lookup(gain: np.ndarray, code: Code, rows: int, inverse: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(fdr (nb + 1,) float64 `fdr_lookup` of this capture's gains, idx (H, W) int64 each pixel's
+    bin, -1 where the gain is not finite): `not_lit_probability`'s model.  gain: (H, W) float64,
+    NaN where no candidate."""
+    median, nb = gain_bins(code, rows, inverse)
+    idx = np.empty(gain.shape, np.int64)
+    below = np.empty(gain.shape[0], np.int64)
+    _gain_index(np.ascontiguousarray(gain, np.float64), np.float64(median), np.int64(nb), np.float64(GAIN_BIN),
+                idx, below)
+    counts = np.empty(nb + 1, np.int64)
+    _bin_counts(idx, np.int64(nb), counts)
+    total = int(counts.sum())
+    if total == 0:
+        return np.zeros(nb + 1, np.float64), idx
+    return fdr_lookup(counts[:nb], total, int(below.sum()), code, rows, inverse), idx
 
 
 def gain_bins(code: Code, rows: int, inverse: bool = False) -> tuple[float, int]:
