@@ -14,15 +14,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from _plane_box_sphere import render, scene as pbs_scene
 from edge.codes import get_code
 from edge.decode import decode
 from edge.decode.posterior import Noise
 from edge.decode.propagate import propagate
 from edge.decode.sgm import penalties
-from edge.sim import CameraModel, capture_code
-from edge.sim.metrics import truth
-from edge.sim.scenes import make_scene
+from test_decode_sgm import _pbs, _sim  # the same two generators as the sgm tests
 
 ECC = get_code("ecc-22-10")
 
@@ -151,21 +148,6 @@ def test_propagation_checks_its_inputs():
 
 
 # -------------------------------------------------------------------------- behaviour
-
-def _sim(ratio, seed):
-    scene = make_scene("flying", 160, 120, seed=seed)
-    a = 0.8 * ratio / (1 + ratio)
-    cam = CameraModel(bits=12, sigma_r=0.002, sigma_s=0.04, ambient=a, projector=0.8 - a)
-    cap = capture_code(scene, ECC, cam, rng=np.random.default_rng([seed, 7]))
-    col, lit = truth(scene)
-    return cap.frames, cap.white, cap.black, col, lit
-
-
-def _pbs(ratio, seed):
-    col, albedo = pbs_scene(160, 120, seed=seed)
-    f, w, b = render(ECC.codebook, col, albedo, ambient=0.12 * ratio, projector=0.12, bits=12, seed=seed + 1)
-    return f, w, b, col, np.ones(col.shape, bool)
-
 
 # measured (160 x 120, ambient 2; error = wrong or invalid over lit pixels): edge.sim seed 5: soft
 #   5.8 %, top-3 floor 2.2 %, sgm 0.96 % (far among published 0.07 %); plane-box-sphere seed 6:
