@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 import time
 from pathlib import Path
 from types import SimpleNamespace
@@ -56,3 +57,12 @@ def slow_pipeline(delay_s: float):
 
     Slow.delay_s = delay_s
     return Slow
+
+
+def interactive_signals() -> None:
+    """``preexec_fn`` of a service under test: SIGINT and SIGHUP at their defaults in the child,
+    as an interactive shell starts a command.  A test run started under nohup or as a background
+    job passes SIG_IGN on for them, and `edge run` respects an inherited SIG_IGN, so a signal
+    test would otherwise depend on how pytest itself was started."""
+    for sig in (signal.SIGINT, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_DFL)

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 import zenoh  # a hard dependency: a broken install fails here, it is not skipped
+from _service_helpers import interactive_signals
 
 ROOT = Path(__file__).resolve().parents[1]
 PROFILES = Path(__file__).parent / "data" / "profiles"
@@ -35,7 +36,7 @@ def free_port() -> int:
 def _edge(*args: str, **kw) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     return subprocess.Popen([sys.executable, "-m", "edge.cli", *args], cwd=ROOT, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, **kw)
+                            stderr=subprocess.PIPE, text=True, preexec_fn=interactive_signals, **kw)
 
 
 def _alone_depth(profile_path, device: str, code: int, stack: int) -> np.ndarray:

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from _service_helpers import DATA, TEST_PROFILE, load_test_profile
+from _service_helpers import DATA, TEST_PROFILE, interactive_signals, load_test_profile
 
 COMMITTED = DATA / "sim-small.mcap"
 
@@ -129,7 +129,8 @@ def _start_recording(tmp_path: Path, out: Path) -> subprocess.Popen:
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     return subprocess.Popen([sys.executable, "-m", "edge.cli", "run", "--profile", str(profile), "--no-zenoh",
                              "--record", str(out), "--seconds", "120"],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+                            preexec_fn=interactive_signals)
 
 
 def _wait_for_stacks(proc: subprocess.Popen, n: int, timeout: float = 90.0) -> list[str]:

@@ -27,6 +27,9 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+
+from _service_helpers import interactive_signals  # noqa: E402
 TEST_PROFILE = ROOT / "tests" / "data" / "profiles" / "test-small.toml"
 #: a stopped service must be gone within this many seconds of the (first) signal
 EXIT_BOUND_S = 20.0
@@ -53,8 +56,8 @@ class Proc:
                  command: list[str] | None = None) -> None:
         self.started = time.monotonic()
         argv = command if command is not None else [sys.executable, "-m", "edge.cli", *map(str, args)]
-        self.p = subprocess.Popen(argv, stdout=subprocess.PIPE,
-                                  stderr=subprocess.STDOUT, text=True, env=env or env_for(), cwd=cwd)
+        self.p = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                  env=env or env_for(), cwd=cwd, preexec_fn=interactive_signals)
         self.lines: list[str] = []
         self._cond = threading.Condition()
         self._reader = threading.Thread(target=self._read, daemon=True)
@@ -287,6 +290,7 @@ def full_disk_trial(workdir: Path, limit_bytes: int = 1_500_000, stacks: int = 4
     small.write_text(TEST_PROFILE.read_text().replace("chunk_size = 4194304", "chunk_size = 65536"))
 
     def limit() -> None:
+        interactive_signals()
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)   # write() fails with EFBIG instead of killing
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
 
