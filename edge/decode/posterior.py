@@ -66,6 +66,7 @@ import numpy as np
 from numba import get_num_threads, njit, prange
 
 from ..codes import Code
+from .kernels import sort_small
 
 #: Smallest on - off contrast (normalised units) the split levels keep, so that the search
 #: kernels, which need white > black, decode every pixel.
@@ -781,13 +782,7 @@ def _tail_mass(buf, xs, rk, count, n, nbits, xtab, a, beta, packed, flips, flip_
             delta[i] += delta[i + nbits]
         sorted_d[i] = delta[i]
     # a weight-w flip costs at least the sum of the w smallest deltas: skip a negligible tail
-    for i in range(1, nbits):
-        v = sorted_d[i]
-        j = i - 1
-        while j >= 0 and sorted_d[j] > v:
-            sorted_d[j + 1] = sorted_d[j]
-            j -= 1
-        sorted_d[j + 1] = v
+    sort_small(sorted_d, nbits)
     lowest = 0.0
     for i in range(flip_w[0]):
         lowest += sorted_d[i]

@@ -88,6 +88,18 @@ def pixel_of(p, height, width):
     return yy, p - yy * width, p < height * width
 
 @cuda.jit(device=True)
+def sort_small(a, m):
+    """`kernels.sort_small` on the device: a[:m] sorted ascending in place (insertion sort)."""
+    for i in range(1, m):
+        t = a[i]
+        j = i - 1
+        while j >= 0 and a[j] > t:
+            a[j + 1] = a[j]
+            j -= 1
+        a[j + 1] = t
+
+
+@cuda.jit(device=True)
 def pixel_logs_of(white, black, lmode, ltab, plog, yy, xx):
     """(log v_white, log v_black) of pixel (yy, xx) from the host-computed logs (0 when unused)."""
     if lmode == LOG_TABLE:

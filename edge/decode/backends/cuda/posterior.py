@@ -36,7 +36,7 @@ import math
 import numpy as np
 from numba import cuda
 
-from .cost import MAX_N, mul64, pixel_of
+from .cost import MAX_N, mul64, pixel_of, sort_small
 
 TPB = 128
 #: Most samples per pixel: 2 * MAX_N code + inverse frames, white, black.
@@ -274,13 +274,7 @@ def _tail_mass(buf, xs, rk, count, ns, nbits, xtab, a, beta, packed, flips, flip
         if ns > nbits:
             delta[i] += delta[i + nbits]
         sorted_d[i] = delta[i]
-    for i in range(1, nbits):
-        v = sorted_d[i]
-        j = i - 1
-        while j >= 0 and sorted_d[j] > v:
-            sorted_d[j + 1] = sorted_d[j]
-            j -= 1
-        sorted_d[j + 1] = v
+    sort_small(sorted_d, nbits)
     lowest = 0.0
     for i in range(flip_w[0]):
         lowest += sorted_d[i]

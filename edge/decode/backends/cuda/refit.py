@@ -17,7 +17,7 @@ import numpy as np
 from numba import cuda
 
 from ...levels import MIN_CONTRAST
-from .cost import mul32, pixel_of
+from .cost import mul32, pixel_of, sort_small
 
 TPB = 128
 _MINC = np.float32(MIN_CONTRAST)
@@ -88,13 +88,7 @@ def initial_levels(f, w, b):
         s[i] = f[i, yy, xx]
     s[n] = w[yy, xx]
     s[n + 1] = b[yy, xx]
-    for i in range(1, m):  # insertion sort (values only: the order of equal samples is moot)
-        t = s[i]
-        j = i - 1
-        while j >= 0 and s[j] > t:
-            s[j + 1] = s[j]
-            j -= 1
-        s[j + 1] = t
+    sort_small(s, m)  # values only: the order of equal samples is moot
     half = m // 2
     lo = _pairwise_sum(s, 0, half) / np.float32(half)
     hi = _pairwise_sum(s, m - half, half) / np.float32(half)
