@@ -79,30 +79,31 @@ def test_replay_detects_a_changed_depth(tmp_path):
 
     original = DepthPipeline.process
 
-    def tampered(self, stack, masked_capture=None):
-        res = original(self, stack, masked_capture)
-        res.depth_mm[0, 0] ^= 1
-        return res
+    def replay_tampered(tamper):
+        """Replay `out` with every decoded result passed through tamper(result) first."""
+        def process(self, stack, masked_capture=None):
+            res = original(self, stack, masked_capture)
+            tamper(res)
+            return res
 
-    DepthPipeline.process = tampered
-    try:
-        report = replay_mod.replay_recording(out)
-    finally:
-        DepthPipeline.process = original
+        DepthPipeline.process = process
+        try:
+            return replay_mod.replay_recording(out)
+        finally:
+            DepthPipeline.process = original
+
+    def flip_depth(res):
+        res.depth_mm[0, 0] ^= 1
+
+    report = replay_tampered(flip_depth)
     assert not report.ok and len(report.mismatches) == 2
     assert "depth: 1 of 19200 pixels differ" in report.mismatches[0]
 
-    def tampered_error(self, stack, masked_capture=None):  # one ulp of one published P(wrong)
-        res = original(self, stack, masked_capture)
+    def nudge_error(res):  # one ulp of one published P(wrong)
         y, x = np.argwhere(res.depth_mm > 0)[0]
         res.error[y, x] = np.nextafter(res.error[y, x], np.float32(1))
-        return res
 
-    DepthPipeline.process = tampered_error
-    try:
-        report = replay_mod.replay_recording(out)
-    finally:
-        DepthPipeline.process = original
+    report = replay_tampered(nudge_error)
     assert not report.ok and len(report.mismatches) == 2
     assert "error: 1 of 19200 pixels differ" in report.mismatches[0] and "depth" not in report.mismatches[0]
 
