@@ -153,6 +153,61 @@ def check_error_rule(name, code_name, *, h, w, inverse=False, band=True, dtype=n
                    f"path {got.stats.get('path')}, downloaded {dl.names}")
 
 
+def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
+    """posterior_kernel with a level prior (decode's error rule has one wherever the noise fit has
+    `level_prior.MIN_PIXELS` pixels, more than these tiny captures) against the CPU's
+    `posterior._posterior` on the same inputs: candidates equal, distances / competitor mass /
+    gain / confidence within ERR_RTOL; some pixels with a tail mass."""
+    from numba import cuda
+
+    from edge.decode import posterior as P
+    from edge.decode.backends.cuda import posterior as post_k
+    from edge.decode.backends.cuda.pipeline import posterior_tables
+    from edge.decode.level_prior import kernel_args, level_prior
+
+    code = get_code(code_name)
+    cap, white, black = capture(code, h, w, inverse=inverse, band_center=4, dark=0.1, seed=5)
+    rng = np.random.default_rng(7)
+    truth = np.clip(np.arange(w)[None, :] - 4, 0, code.size - 1) + np.zeros((h, 1), np.int64)
+    cand = np.stack([truth, rng.integers(0, code.size, (h, w)), (truth + 9) % code.size], -1).astype(np.int32)
+    searched = np.zeros(cand.shape, np.float32)
+    off = rng.uniform(0.0, 0.1, 4000)
+    prior = level_prior(off, rng.uniform(0.0, 0.6, 4000))
+    beta = 1e-3
+    ptab, pu0, pdu, pw0, pdw, pout, use = kernel_args(prior)
+    packed, flips, flip_bits, flip_w, weight, wlo, whi = P._flips(code)
+    scale = 1.0 / 255.0
+    samples = P._samples(cap.frames, cap.inverse)
+    xtab = P._xtab(code, inverse)
+    ref = [np.empty((h, w, 3), np.int32), np.empty((h, w, 3), np.float32), np.empty((h, w)), np.empty((h, w)),
+           np.empty((h, w), np.float32), np.empty((h, w), np.float32)]
+    P._posterior(samples, white, black, scale, xtab, code.n, cand, searched, a, beta, packed, flips, flip_bits,
+                 flip_w, float(weight), int(wlo), int(whi), 1.0, True, 1, ptab, pu0, pdu, pw0, pdw, pout, use, *ref)
+    tb = posterior_tables(code, inverse)
+    out = [cuda.device_array((h, w, 3), np.int32), cuda.device_array((h, w, 3), np.float32),
+           cuda.device_array((h, w)), cuda.device_array((h, w)), cuda.device_array((h, w), np.float32)]
+    inv = cuda.to_device(cap.inverse if inverse else np.zeros((1, 1, 1), cap.frames.dtype))
+    grid = (h * w + post_k.TPB - 1) // post_k.TPB
+    post_k.posterior_kernel[grid, post_k.TPB](
+        cuda.to_device(cap.frames), inv, inverse, cuda.to_device(white), cuda.to_device(black), scale, tb["xtab"],
+        int(code.n), cuda.to_device(cand), cuda.to_device(searched), float(P.SKIP_MARGIN), a, beta, tb["packed"],
+        tb["flips"], tb["flip_bits"], tb["flip_w"], tb["weight"], tb["wlo"], tb["whi"], 1.0, float(P.TAIL_FLOOR),
+        cuda.to_device(ptab), pu0, pdu, pw0, pdw, pout, use, float(ptab.min()), *out)
+    got = [o.copy_to_host() for o in out]
+    ok = np.array_equal(got[0], ref[0])
+    close = [np.allclose(g, r, rtol=ERR_RTOL, atol=ERR_ATOL, equal_nan=True)
+             for g, r in zip(got[1:], [ref[1], ref[2], ref[3], ref[4]])]
+    # pixels whose competitor mass (ref[2]) has a tail term: it differs from the top three's alone
+    top3 = [np.empty_like(r) for r in ref]
+    P._posterior(samples, white, black, scale, xtab, code.n, cand, searched, a, beta, packed, np.zeros(0, np.uint64),
+                 np.zeros((0, 1), np.int32), np.zeros(1, np.int32), 1.0, 0, 0, 1.0, True, 1, ptab, pu0, pdu, pw0,
+                 pdw, pout, use, *top3)
+    tails = int((ref[2] != top3[2]).sum())
+    emit(name, ok and all(close) and use and 0 < tails,
+         f"candidates equal {ok}, distances / competitors / gain / confidence close {close}, "
+         f"prior {use}, pixels with a tail mass {tails}/{h * w}")
+
+
 def check_error_rule_reduced(name):
     """The reduced download under the "error" rule (`pipeline.decode_whole` and `Staging.decode`
     with the runtime's `HOST_OUTPUTS`): column, confidence, valid and error come back with the
@@ -169,7 +224,7 @@ def check_error_rule_reduced(name):
     facts = dict(min_disparity=0, max_disparity=8)
     ref = decode(cap.frames, white, black, code, settings=s.replace(backend="cpu"), **facts)
     details, ok = [], int(ref.valid.sum()) > 0
-    small = {"split_s2", "split_mu", "fit_s2", "fit_mu", "gain_counts", "split_on", "split_off"}
+    small = {"split_s2", "split_mu", "fit_s2", "fit_mu", "fit_b", "fit_c", "gain_counts", "split_on", "split_off"}
     for label in ("whole", "staged"):
         with Downloads() as dl:
             if label == "whole":
@@ -742,6 +797,11 @@ def main() -> int:
         ("staged-threads", lambda: check_staged_threads("staged-threads")),
         ("service-staged", lambda: check_service_staged("service-staged")),
         ("runtime-error-rule", lambda: check_runtime_error_rule("runtime-error-rule")),
+        # one thread per pixel runs ~1000 tail words: a few pixels, or the simulator takes minutes
+        ("posterior-prior-ecc-22-10", lambda: check_posterior_prior("posterior-prior-ecc-22-10", "ecc-22-10", h=1,
+                                                                    w=12)),
+        ("posterior-prior-ecc-22-10-inverse", lambda: check_posterior_prior(
+            "posterior-prior-ecc-22-10-inverse", "ecc-22-10", h=1, w=12, inverse=True, a=2e-3)),
     ]
     only = [a for a in sys.argv[1:] if not a.startswith("--")]
     for name, fn in checks:

@@ -71,19 +71,20 @@ CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inverse"
           "error-rule-ecc-22-10-hard-calibration", "error-rule-nary3-6",
           "error-rule-ecc-22-10-fitted", "error-rule-reduced-download", "error-rule-ecc-22-10-sgm",
           "staging", "runtime-pipeline", "reduced-download", "staged-frames", "staged-fallback", "staged-threads",
-          "service-staged", "runtime-error-rule"]
+          "service-staged", "runtime-error-rule", "posterior-prior-ecc-22-10", "posterior-prior-ecc-22-10-inverse"]
 
 
 #: CI's budget: on a cold 2-core machine the simulator subprocess compiles every CPU reference
 #: it calls, and all checks together ran past 10 minutes there.  CI runs these (the search,
 #: hard, validity and refit kernels, the staged / reduced-download runtime paths, and one error-
-#: rule decode, whole and through the runtime, and method "sgm" with its host propagation);
+#: rule decode, whole and through the runtime, method "sgm" with its host propagation, and the
+#: posterior kernel with a level prior, which these tiny decodes are too small to fit);
 #: ``EDGE_CUDA_CHECKS=full`` runs every check.
 CI_CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inverse",
              "soft-band-ecc-22-10-uint16", "soft-band-gray-10-bitdepth-normalized", "soft-nary3-6",
              "hard-ecc-22-10", "hard-gray-10", "validity", "refit-kernels-ecc-22-10", "decode-hard",
              "decode-soft-inverse-nocheck", "error-rule-ecc-22-10-band", "staging", "reduced-download",
-             "staged-frames", "runtime-error-rule", "error-rule-ecc-22-10-sgm"]
+             "staged-frames", "runtime-error-rule", "error-rule-ecc-22-10-sgm", "posterior-prior-ecc-22-10"]
 RUN_CHECKS = CHECKS if os.environ.get("EDGE_CUDA_CHECKS") == "full" else CI_CHECKS
 
 

@@ -16,6 +16,7 @@ import pytest
 from _plane_box_sphere import render, scene as pbs_scene
 from edge.codes import get_code
 from edge.decode import decode
+from edge.decode.level_prior import level_prior, prior_cost
 from edge.decode.posterior import Noise, fit_noise, posterior, split_levels
 from edge.sim import CameraModel, capture_code
 from edge.sim.metrics import truth
@@ -60,53 +61,59 @@ def test_split_levels_matches_brute_force():
             assert lo[y, x] == pytest.approx(ref_lo, rel=1e-5, abs=1e-7)
 
 
+def _fit_reference(r: np.ndarray, x: np.ndarray) -> tuple[float, float]:
+    """Least-squares (b, c) of r = b + c x with c >= 0 (c = 0: b = the mean)."""
+    c, b = np.polyfit(x, r, 1)
+    if c < 0:
+        c, b = 0.0, r.mean()
+    return float(b), float(c)
+
+
 def _nll_reference(r: np.ndarray, x: np.ndarray | None, a: float, beta: float) -> float:
     if x is None:
         mu = np.full_like(r, r.mean())
     else:
-        c, b = np.polyfit(x, r, 1)
-        if c < 0:
-            c, b = 0.0, r.mean()
+        b, c = _fit_reference(r, x)
         mu = b + c * x
     v = a + beta * np.maximum(mu, 0)
     return float(((r - mu) ** 2 / v + np.log(v)).sum())
 
 
-def _tail_reference(r: np.ndarray, code, best: int, scored: list[int], a: float, beta: float) -> float:
-    """The tail mass as `edge.decode.posterior` defines it: over the codewords h of weight
-    d_min .. d_min + 2 (an evenly spaced sample of at most 1024, scaled up to all of them),
-    exp(-(sum of per-bit flip costs of h under best's fitted levels) / 2), minus the same term of
-    the other scored candidates where they are such a flip."""
-    n = code.n
-    x = np.r_[code.codebook[best], 1, 0].astype(np.float64)
-    c, b = np.polyfit(x, r, 1)
-    if c < 0:
-        c, b = 0.0, r.mean()
+def _posterior_reference(r: np.ndarray, x: np.ndarray, a: float, beta: float, prior) -> float:
+    """-2 log-posterior of one codeword (up to a constant): its refitted likelihood plus the
+    level prior's cost at its levels."""
+    return _nll_reference(r, x, a, beta) + float(prior_cost(prior, *_fit_reference(r, x)))
 
-    def cost(sym):
-        mu = b + c * sym
-        v = a + beta * np.maximum(mu, 0)
-        return (r[:n] - mu) ** 2 / v + np.log(v)
 
-    own = code.codebook[best].astype(np.float64)
-    delta = cost(1 - own) - cost(own)
+def _tail_reference(r: np.ndarray, code, best: int, scored: list[int], a: float, beta: float, prior) -> float:
+    """The tail mass as `edge.decode.posterior` defines it: over the codewords c = best xor h, h
+    of weight d_min .. d_min + 2 (an evenly spaced sample of at most 1024, scaled up to all of
+    them), exp(-(P_c - P_best) / 2) with P each word's own refitted likelihood plus the level
+    prior, minus the same term of the other scored candidates where they are such a word."""
+    ends = np.array([1.0, 0.0])
+    p_best = _posterior_reference(r, np.r_[code.codebook[best], ends], a, beta, prior)
     weights = code.codebook.sum(axis=1)
     dmin = weights[weights > 0].min()
     low = np.nonzero((weights > 0) & (weights <= dmin + 2))[0]
     sample = low[np.unique(np.linspace(0, low.size - 1, min(1024, low.size)).round().astype(int))]
-    term = lambda h: np.exp(-0.5 * delta[np.asarray(h, bool)].sum())  # noqa: E731
-    total = low.size / sample.size * sum(term(code.codebook[h]) for h in sample)
+
+    def term(word):
+        return np.exp(-0.5 * (_posterior_reference(r, np.r_[word, ends].astype(np.float64), a, beta, prior) - p_best))
+
+    own = code.codebook[best]
+    total = low.size / sample.size * sum(term(own ^ code.codebook[h]) for h in sample)
     for k in scored[1:]:
         flip = code.codebook[best] ^ code.codebook[k]
         if dmin <= flip.sum() <= dmin + 2:
-            total -= term(flip)
+            total -= term(code.codebook[k])
     return max(total, 0.0)
 
 
-@pytest.mark.parametrize("sigma", [0.05, 0.12])
-def test_posterior_matches_brute_force(sigma):
-    """Candidates re-ordered by refitted likelihood, the competitor and tail mass, and the
-    not-lit probability (from the brute-force gains), at high and at low SNR."""
+@pytest.mark.parametrize("sigma, with_prior", [(0.05, False), (0.05, True), (0.12, True)])
+def test_posterior_matches_brute_force(sigma, with_prior):
+    """Candidates re-ordered by refitted likelihood plus level prior, the competitor and tail
+    mass (every tail word refitted), and the not-lit probability (from the brute-force gains,
+    which leave the prior out), at high and at low SNR."""
     from edge.decode.posterior import not_lit_probability
 
     code = get_code("ecc-15-10")
@@ -120,9 +127,12 @@ def test_posterior_matches_brute_force(sigma):
     black = (0.1 + rng.normal(0, sigma, (h, w))).astype(np.float32)
     cand = np.stack([rows, rng.integers(0, code.size, (h, w)), (rows + 1) % code.size], -1).astype(np.int32)
     cand[0, 0, 2] = -1
-    noise = Noise(sigma ** 2, 0.001, True, h * w)
+    # a prior of levels like the capture's: off 0.1, on - off 0.3 (lit) or 0 (not lit), with spread
+    prior = level_prior(rng.normal(0.1, 0.02, 3000), np.where(rng.random(3000) > 0.2, rng.normal(0.3, 0.05, 3000),
+                                                                 np.abs(rng.normal(0.0, 0.03, 3000)))) if with_prior else None
+    assert (prior is not None) == with_prior
+    noise = Noise(sigma ** 2, 0.001, True, h * w, prior)
     out = posterior(frames, white, black, 1.0, code, cand, noise, choices=code.size)
-    n = code.n
     weights = code.codebook.sum(axis=1)
     low_words = int(((weights > 0) & (weights <= weights[weights > 0].min() + 2)).sum())  # all, not the sample
     gains = np.full((h, w), np.nan)
@@ -131,19 +141,22 @@ def test_posterior_matches_brute_force(sigma):
         for x in range(w):
             r = np.r_[frames[:, y, x], white[y, x], black[y, x]].astype(np.float64)
             ks = [k for k in cand[y, x] if k >= 0]
-            ls = {k: _nll_reference(r, np.r_[code.codebook[k], 1, 0].astype(np.float64), noise.a, noise.beta) for k in ks}
+            xk = {k: np.r_[code.codebook[k], 1, 0].astype(np.float64) for k in ks}
+            ls = {k: _posterior_reference(r, xk[k], noise.a, noise.beta, prior) for k in ks}
             order = sorted(ks, key=lambda k: ls[k])
             assert list(out.candidates[y, x, :len(order)]) == order
+            np.testing.assert_allclose(out.distances[y, x, :len(order)], [ls[k] for k in order], rtol=1e-5, atol=1e-3)
             best = order[0]
             e = {k: np.exp(-(ls[k] - ls[best]) / 2) for k in order[1:]}
             far = sum(v for k, v in e.items() if abs(k - best) > 1)
             every = sum(e.values())
             # the kernel's rule: a tail only behind a third candidate that is not negligible
             if len(order) == 3 and low_words * e[order[2]] > 1e-4 and far < 1 + every - far:
-                tail = _tail_reference(r, code, best, order, noise.a, noise.beta)
+                tail = _tail_reference(r, code, best, order, noise.a, noise.beta, prior)
                 far, every = far + tail, every + tail
             comp[y, x] = far / (1 + every)
-            gains[y, x] = _nll_reference(r, None, noise.a, noise.beta) - ls[best]
+            gains[y, x] = _nll_reference(r, None, noise.a, noise.beta) - min(_nll_reference(r, xk[k], noise.a, noise.beta)
+                                                                             for k in ks)
     dark = not_lit_probability(gains, code, code.size)
     ref = 1 - (1 - dark) * (1 - comp)
     np.testing.assert_allclose(out.error, ref, rtol=2e-3, atol=1e-6)
@@ -303,18 +316,20 @@ def test_error_rule_takes_inverse_frames_and_auto_keeps_the_confidence_rule_for_
 @pytest.mark.parametrize("name", ["gray-10", "ecc-22-10"])
 def test_error_probability_is_calibrated(gen, name):
     """Predicted P(wrong) against the observed rate of columns more than one row off, pooled over
-    ambient 0.5 / 1 / 2 and two seeds, per bin from 0.5 % to 20 % with >= 200 pixels: within a
-    factor 5 (measured: gray-10 within 1.3x on both generators; ecc-22-10 up to 3x under on
-    edge.sim and up to 4.4x over on the independent renderer, tools/eval_posterior.py; issue 11
-    asks for 2x, which ecc-22-10 does not reach yet)."""
+    ambient 0.5 / 1 / 2 and two seeds (7 and 8: neither the level prior's design nor
+    tools/eval_posterior.py used them), per bin from 0.5 % to 20 % with >= 200 pixels: within
+    the issue's factor 2, at 99 % confidence on the bin's error count (tools/eval_posterior.py,
+    seeds 0 and 1: gray-10 within 1.2x, ecc-22-10 within 1.5x on both generators from 0.5 %;
+    here edge.sim's ecc-22-10 [1 %, 2 %) bin sees 15 errors for 6.7 expected, 2.2x, whose 99 %
+    interval 6.7-28 still reaches 2x)."""
     code = get_code(name)
     pred, obs = [], []
     for ratio in (0.5, 1.0, 2.0):
-        for seed in (0, 1):
+        for seed in (7, 8):
             if gen == "edge.sim":
                 f, w, b, bd, col, lit = _sim(code, ratio, seed=seed)
             else:
-                f, w, b, bd, col, lit = _pbs(code, ratio, seed=seed + 3)
+                f, w, b, bd, col, lit = _pbs(code, ratio, seed=seed)
             d = decode(f, w, b, code, bit_depth=bd)
             pred.append(d.error[lit])
             obs.append((np.abs(d.candidates[..., 0] - col) > 1)[lit])
@@ -323,8 +338,34 @@ def test_error_probability_is_calibrated(gen, name):
     for lo, hi in ((0.005, 0.01), (0.01, 0.02), (0.02, 0.05), (0.05, 0.1), (0.1, 0.2)):
         s = (p >= lo) & (p < hi)
         if s.sum() >= 200:
-            ratio = o[s].mean() / p[s].mean()
-            print(f"{gen} {name} [{lo}, {hi}): predicted {p[s].mean():.4f} observed {o[s].mean():.4f} ({s.sum()})")
-            assert 0.2 <= ratio <= 5.0, (lo, p[s].mean(), o[s].mean())
+            expected, seen = float(p[s].sum()), int(o[s].sum())
+            low, high = _poisson_interval(seen)
+            print(f"{gen} {name} [{lo}, {hi}): predicted {p[s].mean():.4f} observed {o[s].mean():.4f} ({s.sum()}), "
+                  f"errors {seen} (99 %: {low:.1f}-{high:.1f}) against {expected:.1f} expected")
+            # within a factor 2 unless the count says otherwise at 99 % (a bin of 400 pixels at 1 %
+            # expects 4 errors: its observed ratio alone scatters by more than 2x)
+            assert low <= 2.0 * expected and high >= 0.5 * expected, (lo, expected, seen)
             checked += 1
     assert checked >= 3
+
+
+def _poisson_interval(k: int, level: float = 0.99) -> tuple[float, float]:
+    """Exact (Garwood) two-sided interval of a Poisson mean from a count k, by bisection."""
+    from math import exp, lgamma, log
+
+    def cdf(k_: int, mu: float) -> float:  # P(X <= k_)
+        if k_ < 0:
+            return 0.0
+        return sum(exp(i * log(mu) - mu - lgamma(i + 1)) for i in range(k_ + 1)) if mu > 0 else 1.0
+
+    def solve(f, lo: float, hi: float) -> float:
+        for _ in range(100):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if f(mid) else (lo, mid)
+        return 0.5 * (lo + hi)
+
+    tail = (1.0 - level) / 2.0
+    top = 10.0 * (k + 10)
+    low = 0.0 if k == 0 else solve(lambda mu: 1.0 - cdf(k - 1, mu) < tail, 0.0, top)
+    high = solve(lambda mu: cdf(k, mu) > tail, 0.0, top)
+    return low, high

@@ -2,7 +2,7 @@
 
 Exactness: the four sweeps against a pixel-by-pixel reference of the module docstring, with its
 own least-squares refit and Gaussian likelihood (numpy, independent of the numba kernels), on
-small random captures with and without inverse frames.  Behaviour, with `decode`'s defaults:
+small random captures with and without inverse frames and a level prior.  Behaviour, with `decode`'s defaults:
 on edge.sim at ambient = 2 x projector, where many lit pixels have no top-3 candidate within one
 row of the truth, sgm with propagation errs on fewer pixels than that floor (which bounds any
 regularisation of the top three alone), and on both scene generators it stays within the error
@@ -16,6 +16,7 @@ import pytest
 
 from edge.codes import get_code
 from edge.decode import decode
+from edge.decode.level_prior import level_prior, prior_cost
 from edge.decode.posterior import Noise
 from edge.decode.propagate import propagate
 from edge.decode.sgm import penalties
@@ -26,9 +27,10 @@ ECC = get_code("ecc-22-10")
 
 # -------------------------------------------------------------------------- reference
 
-def _nll_ref(samples, x, a, beta):
+def _nll_ref(samples, x, a, beta, prior=None):
     """-2 log-likelihood of samples (m,) under levels b + c x (x (m,) in [0, 1]) refitted by least
-    squares with c >= 0, variance a + beta * max(level, 0)."""
+    squares with c >= 0, variance a + beta * max(level, 0); plus the level prior's cost (the
+    posterior's distance) where a prior is given."""
     m = samples.size
     sx, sxx, sr, sxr = x.sum(), (x * x).sum(), samples.sum(), (x * samples).sum()
     den = m * sxx - sx * sx
@@ -36,10 +38,10 @@ def _nll_ref(samples, x, a, beta):
     b = (sr - c * sx) / m
     mu = b + c * x
     v = a + beta * np.maximum(mu, 0.0)
-    return float(((samples - mu) ** 2 / v + np.log(v)).sum())
+    return float(((samples - mu) ** 2 / v + np.log(v)).sum() + prior_cost(prior, b, c))
 
 
-def _propagate_ref(samples, xtab, cand, dist, error, a, beta, max_error, choices, rows):
+def _propagate_ref(samples, xtab, cand, dist, error, a, beta, max_error, choices, rows, prior=None):
     """The module docstring, pixel by pixel.  samples (H, W, m) normalised (code samples, white,
     black); xtab (rows, m - 2) symbols / (q - 1)."""
     h, w, _ = samples.shape
@@ -59,7 +61,7 @@ def _propagate_ref(samples, xtab, cand, dist, error, a, beta, max_error, choices
             if hits:
                 lr = float(dist[y, x, hits[-1]])
             else:
-                lr = _nll_ref(samples[y, x], np.concatenate([xtab[r], [1.0, 0.0]]), a, beta)
+                lr = _nll_ref(samples[y, x], np.concatenate([xtab[r], [1.0, 0.0]]), a, beta, prior)
             if lr < best_l:
                 best, best_l = r, lr
         if best < 0 or 0.5 * (best_l - float(dist[y, x, 0])) > bound:
@@ -81,9 +83,10 @@ def _propagate_ref(samples, xtab, cand, dist, error, a, beta, max_error, choices
     return extra, np.where(extra >= 0, extra_l, np.inf)
 
 
-def _case(seed, inverse):
+def _case(seed, inverse, with_prior=False):
     """A small slanted-surface capture of ecc-22-10 (uint16 12-bit) with synthetic top-3
-    candidates: the truth left out of some pixels, unscored rows (inf distance), absent ones."""
+    candidates: the truth left out of some pixels, unscored rows (inf distance), absent ones;
+    with_prior: a level prior of levels drawn as the capture's (its distances include it)."""
     rng = np.random.default_rng(seed)
     h, w, n = 7, 9, ECC.n
     truth_col = 200 + np.arange(w)[None, :] + np.arange(h)[:, None] // 3
@@ -105,6 +108,10 @@ def _case(seed, inverse):
     if inverse:
         xtab = np.concatenate([xtab, 1.0 - xtab], axis=1)
     a, beta = 0.03 ** 2, 0.0
+    prior = None
+    if with_prior:
+        off = rng.uniform(0.02, 0.1, 4000)
+        prior = level_prior(off, rng.uniform(0.3, 0.6, 4000) - off)
     cand = np.empty((h, w, 3), np.int32)
     dist = np.empty((h, w, 3), np.float32)
     for y in range(h):
@@ -112,7 +119,7 @@ def _case(seed, inverse):
             t = truth_col[y, x]
             rows = [t, t + rng.integers(5, 300), t - rng.integers(5, 150)] if rng.random() < 0.5 else \
                 [t + 17, t + rng.integers(20, 300), t - rng.integers(20, 150)]
-            ls = [_nll_ref(samples[y, x], np.concatenate([xtab[r], [1.0, 0.0]]), a, beta) for r in rows]
+            ls = [_nll_ref(samples[y, x], np.concatenate([xtab[r], [1.0, 0.0]]), a, beta, prior) for r in rows]
             order = np.argsort(ls)
             cand[y, x] = np.asarray(rows)[order]
             dist[y, x] = np.asarray(ls)[order]
@@ -121,15 +128,16 @@ def _case(seed, inverse):
             if rng.random() < 0.1:
                 cand[y, x, 1:], dist[y, x, 1:] = -1, np.inf
     error = rng.uniform(0.0, 0.03, (h, w)).astype(np.float32)
-    return frames, white_raw, black_raw, inv, scale, samples, xtab, cand, dist, error, a, beta
+    return frames, white_raw, black_raw, inv, scale, samples, xtab, cand, dist, error, a, beta, prior
 
 
-@pytest.mark.parametrize("seed, inverse", [(0, False), (1, False), (2, True)])
-def test_propagation_matches_the_pixel_by_pixel_reference(seed, inverse):
-    frames, white, black, inv, scale, samples, xtab, cand, dist, error, a, beta = _case(seed, inverse)
-    got = propagate(frames, white, black, scale, ECC, cand, dist, error, Noise(a, beta, True, 0), max_error=0.01,
+@pytest.mark.parametrize("seed, inverse, with_prior", [(0, False, False), (1, False, True), (2, True, True)])
+def test_propagation_matches_the_pixel_by_pixel_reference(seed, inverse, with_prior):
+    frames, white, black, inv, scale, samples, xtab, cand, dist, error, a, beta, prior = _case(seed, inverse, with_prior)
+    assert (prior is not None) == with_prior
+    got = propagate(frames, white, black, scale, ECC, cand, dist, error, Noise(a, beta, True, 0, prior), max_error=0.01,
                     choices=ECC.size, inverse=inv)
-    want, want_l = _propagate_ref(samples, xtab, cand, dist, error, a, beta, 0.01, ECC.size, ECC.size)
+    want, want_l = _propagate_ref(samples, xtab, cand, dist, error, a, beta, 0.01, ECC.size, ECC.size, prior)
     assert got.candidates.shape == (7, 9, 4) and got.distances.shape == (7, 9, 4)
     np.testing.assert_array_equal(got.candidates[..., :3], cand)
     np.testing.assert_array_equal(got.distances[..., :3], dist)
@@ -139,7 +147,7 @@ def test_propagation_matches_the_pixel_by_pixel_reference(seed, inverse):
 
 
 def test_propagation_checks_its_inputs():
-    frames, white, black, inv, scale, samples, xtab, cand, dist, error, a, beta = _case(0, False)
+    frames, white, black, inv, scale, samples, xtab, cand, dist, error, a, beta, _ = _case(0, False)
     noise = Noise(a, beta, True, 0)
     with pytest.raises(ValueError, match="max_error"):
         propagate(frames, white, black, scale, ECC, cand, dist, error, noise, max_error=0.0, choices=ECC.size)

@@ -23,7 +23,8 @@ Three pure steps over numpy arrays (numba kernels, one pass over the pixels each
    ``s2`` over 16 quantile bins of ``mu`` (medians, so wrongly decoded pixels do not inflate it;
    each divided by the median of chi2_(m-2) / (m-2)), by least squares, with ``a`` floored at the
    quantisation variance ``(scale**2) / 12`` of integer frames.  The settings' sigma_r / sigma_s are the prior:
-   they are used where fewer than `MIN_FIT_PIXELS` pixels are decoded.
+   they are used where fewer than `MIN_FIT_PIXELS` pixels are decoded.  The same pixels' levels
+   (b, c) give the capture's level prior (`edge.decode.level_prior`), in ``Noise.levels``.
 
 3. `posterior` (the validity stage's input): for each of the three candidates k, the levels are
    refitted to that candidate (``c >= 0``) and scored by the Gaussian negative log-likelihood
@@ -32,19 +33,24 @@ Three pure steps over numpy arrays (numba kernels, one pass over the pixels each
 
        P(wrong) = 1 - (1 - P(not lit)) * (1 - P(confused))
 
-   * ``P(confused)``: with a uniform prior over the columns, competitor k has posterior odds
-     ``e_k = exp(-(L_k - L_1) / 2)``; ``P(confused) = sum over far competitors e_k / (1 + sum
-     over all e_k)``, where a competitor is *far* when its row differs from c1's by more than one
-     codebook row (a one-row miss is the pattern's own quantisation, not an outlier).  Beyond
-     the top three, for binary linear codes, the codewords ``c1 xor h`` with h of weight d_min ..
-     d_min + `TAIL_WEIGHTS` are added (`_tail_mass`: per-bit flip costs under c1's levels),
-     scaled by the share of the codebook a disparity band allows; not where the search found
-     fewer than three or the third is already negligible.
+   * ``P(confused)``: with a uniform prior over the columns and the capture's level prior p
+     over each candidate's levels, candidate k scores ``P_k = L_k - 2 log p(b_k, c_k)`` (its
+     -2 log-posterior up to a constant; the candidates are ordered by it, c1 the best) and
+     competitor k has posterior odds ``e_k = exp(-(P_k - P_1) / 2)``; ``P(confused) = sum over
+     far competitors e_k / (1 + sum over all e_k)``, where a competitor is *far* when its row
+     differs from c1's by more than one codebook row (a one-row miss is the pattern's own
+     quantisation, not an outlier).  Beyond the top three, for binary linear codes, the
+     codewords ``c1 xor h`` with h of weight d_min .. d_min + `TAIL_WEIGHTS` are added
+     (`_tail_mass`: each word with its own refitted levels, in closed form from per-bit sums, and
+     the prior), scaled by the share of the codebook a disparity band allows; not where the
+     search found fewer than three or the third is already negligible.  Without the prior a
+     far competitor's flat-prior odds overstate it where the scene has no pixels at its levels;
+     without the refit the tail words, scored under c1's levels, lose about 3/4 of their mass.
    * ``P(not lit)`` (shadow, outside the projector): a local false-discovery rate on the gain
-     ``L_0 - L_1``, whose law for unlit pixels is known (`_null`); the share of unlit pixels and
+     ``L_0 - min_k L_k`` (likelihoods, no prior), whose law for unlit pixels is known (`_null`); the share of unlit pixels and
      the density of the gain come from the capture (`not_lit_probability`).
 
-   Candidates come back re-ordered by L_k.
+   Candidates come back re-ordered by P_k.
 
 Units: intensities normalised (1 = full scale of the frame dtype), variances in normalised
 units squared.  Shapes: frames (n, H, W), white / black / outputs (H, W), candidates (H, W, 3).
@@ -67,6 +73,7 @@ from numba import get_num_threads, njit, prange
 
 from ..codes import Code
 from .kernels import sort_small
+from .level_prior import LevelPrior, cost_at, kernel_args, level_prior
 
 #: Smallest on - off contrast (normalised units) the split levels keep, so that the search
 #: kernels, which need white > black, decode every pixel.
@@ -92,20 +99,23 @@ LANES = 16
 
 
 class Noise(NamedTuple):
-    """Fitted noise model: variance ``a + beta * I`` (normalised units); ``fitted`` False where
-    the prior was used; ``pixels`` the pixels the fit used."""
+    """Fitted model of a capture: noise variance ``a + beta * I`` (normalised units); ``fitted``
+    False where the prior was used; ``pixels`` the pixels the fit used; ``levels`` the capture's
+    prior over a pixel's levels (`edge.decode.level_prior`), None = the flat prior."""
 
     a: float
     beta: float
     fitted: bool
     pixels: int
+    levels: LevelPrior | None = None
 
 
 class Posterior(NamedTuple):
     """Output of `posterior` (all (H, W) unless stated).
 
     candidates: (H, W, 3) int32 rows re-ordered by likelihood (-1 where absent);
-    distances: (H, W, 3) float32 negative log-likelihoods ``L_k`` (inf where absent);
+    distances: (H, W, 3) float32 ``P_k``: negative log-likelihoods ``L_k`` plus the level prior's
+        ``-2 log p(b_k, c_k)`` (the -2 log-posterior up to a constant; inf where absent);
     error: float32 P(wrong) of candidates[..., 0] (1 where no candidate);
     confidence: float32 ``(d2 - d1) / d2`` of the Mahalanobis parts ``d_k = sum (r - mu)**2 / v``
         (the paper's ratio on the refitted candidates; its lower bound ``SKIP_MARGIN / (d1 +
@@ -338,7 +348,7 @@ def _fit(buf, xs, row, n, xtab):
 
 
 @njit(cache=True, parallel=True)
-def _fit_stats(frames, white, black, scale, xtab, best, step_y, step_x, out_s2, out_mu):
+def _fit_stats(frames, white, black, scale, xtab, best, step_y, step_x, out_s2, out_mu, out_b, out_c):
     n = frames.shape[0]
     m = n + 2
     rows, cols = out_s2.shape
@@ -354,9 +364,13 @@ def _fit_stats(frames, white, black, scale, xtab, best, step_y, step_x, out_s2, 
             if row < 0:
                 out_s2[ry, rx] = np.nan
                 out_mu[ry, rx] = np.nan
+                out_b[ry, rx] = np.nan
+                out_c[ry, rx] = np.nan
                 continue
             buf = block[xx]
             b, c = _fit(buf, xs, row, n, xtab)
+            out_b[ry, rx] = b
+            out_c[ry, rx] = c
             ssr = 0.0
             mu = 0.0
             for i in range(m):
@@ -375,7 +389,8 @@ def _chi2_median_ratio(k: int) -> float:
 
 def fit_noise(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, code: Code,
               best: np.ndarray, *, prior: tuple[float, float], inverse: np.ndarray | None = None) -> Noise:
-    """Step 2 of the module docstring: the `Noise` of this capture.
+    """Step 2 of the module docstring: the `Noise` of this capture, with the capture's level
+    prior (`edge.decode.level_prior.level_prior` of the same pixels' levels).
 
     best: (H, W) int codebook rows (-1 = none) of the search; prior: (sigma_r, sigma_s) used where
     fewer than `MIN_FIT_PIXELS` pixels have a row; inverse: (n, H, W) inverse frames or None.
@@ -385,10 +400,12 @@ def fit_noise(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     sy, sx = _steps(h, w)
     s2 = np.empty(((h + sy - 1) // sy, (w + sx - 1) // sx), np.float64)
     mu = np.empty_like(s2)
+    fb = np.empty_like(s2)
+    fc = np.empty_like(s2)
     xtab = _xtab(code, inverse is not None)
     _fit_stats(samples, white, black, np.float64(scale), xtab,
-               np.ascontiguousarray(best, np.int32), sy, sx, s2, mu)
-    return _noise_from(s2, mu, samples, scale, prior)
+               np.ascontiguousarray(best, np.int32), sy, sx, s2, mu, fb, fc)
+    return _noise_from(s2, mu, samples, scale, prior)._replace(levels=level_prior(fb, fc))
 
 
 def _steps(h: int, w: int) -> tuple[int, int]:
@@ -443,8 +460,8 @@ def _noise_from(s2: np.ndarray, mu: np.ndarray, frames: np.ndarray, scale: float
 
 @njit(cache=True, inline="always")
 def _nll(buf, xs, row, n, xtab, a, beta, use_row):
-    """(L, Mahalanobis part, contrast) of one hypothesis: codebook row `row` (use_row) or one
-    flat level (not use_row)."""
+    """(L, Mahalanobis part, contrast, off level) of one hypothesis: codebook row `row` (use_row)
+    or one flat level (not use_row)."""
     m = n + 2
     if use_row:
         b, c = _fit(buf, xs, row, n, xtab)
@@ -483,7 +500,7 @@ def _nll(buf, xs, row, n, xtab, a, beta, use_row):
             q = e * e / v
             total += q + np.log(v)
         maha += q
-    return total, maha, c
+    return total, maha, c, b
 
 
 @njit(cache=True, inline="always")
@@ -612,7 +629,7 @@ def _interleaved(j, chunk, k):
 
 @njit(cache=True, parallel=True)
 def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta, packed, flips, flip_bits, flip_w,
-               tail_weight, wlo, whi, in_band, binary, threads,
+               tail_weight, wlo, whi, in_band, binary, threads, ptab, pu0, pdu, pw0, pdw, pout, use_prior,
                out_cand, out_dist, out_err, out_gain, out_conf, out_contrast):
     """Step 3 per pixel, LANES pixels of a row at a time: the hypotheses' NLLs lane-parallel
     (`_lane_nll`, `_lane_flat`; `_nll` per lane where the code is not binary), then each pixel's
@@ -622,6 +639,7 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
     m = n + 2
     L = LANES
     use_tail = flips.size > 0
+    pmin = ptab.min() if use_prior else 0.0
     chunk = (height + threads - 1) // threads
     for it in prange(chunk * threads):
         yy = _interleaved(it, chunk, threads)
@@ -632,6 +650,9 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
         S = np.empty((9, L), np.float64)
         buf = np.empty(m, np.float64)
         xs = np.empty(m, np.float64)
+        dn = np.empty(n, np.float64)
+        ds = np.empty(n, np.float64)
+        dq = np.empty(n, np.float64)
         delta = np.empty(n, np.float64)
         sorted_d = np.empty(n, np.float64)
         sr = np.empty(L, np.float64)
@@ -641,6 +662,7 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
         hl = np.empty((3, L), np.float64)
         hq = np.empty((3, L), np.float64)
         hc = np.empty((3, L), np.float64)
+        hp = np.empty((3, L), np.float64)
         flat = np.empty(L, np.float64)
         lk = np.empty(3, np.float64)
         mk = np.empty(3, np.float64)
@@ -671,20 +693,24 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
                         continue
                     if binary:
                         _lane_nll(R, sr, X, rows[k], n, xtab, a, beta, S, hl[k], hq[k], hc[k])
+                        for l in range(L):  # S[3]: each lane's off level b of this candidate
+                            hp[k, l] = cost_at(ptab, pu0, pdu, pw0, pdw, pout, S[3, l], hc[k, l]) if use_prior else 0.0
                     else:
                         for l in range(L):
                             if scored[k, l]:
                                 for i in range(m):
                                     buf[i] = R[i, l]
-                                tl, tq, tc = _nll(buf, xs, rows[k, l], n, xtab, a, beta, True)
+                                tl, tq, tc, tb = _nll(buf, xs, rows[k, l], n, xtab, a, beta, True)
                                 hl[k, l] = tl
                                 hq[k, l] = tq
                                 hc[k, l] = tc
+                                hp[k, l] = cost_at(ptab, pu0, pdu, pw0, pdw, pout, tb, tc) if use_prior else 0.0
                 _lane_flat(R, sr, n, a, beta, S, flat)
             for l in range(min(L, width - x0)):
                 xx = x0 + l
                 count = 0
                 unscored = 0
+                plain = np.inf  # the least L_k without the prior: the not-lit test's gain is flat - plain
                 for k in range(3):
                     row = cand[yy, xx, k]
                     if row < 0:
@@ -693,8 +719,9 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
                         rest[unscored] = row  # posterior odds far below any target: not rescored
                         unscored += 1
                         continue
-                    total = hl[k, l]
-                    # insertion by likelihood (ties keep the search's order)
+                    plain = min(plain, hl[k, l])
+                    total = hl[k, l] + hp[k, l]
+                    # insertion by posterior: likelihood plus level prior (ties keep the search's order)
                     j = count
                     while j > 0 and lk[j - 1] > total:
                         lk[j] = lk[j - 1]
@@ -723,7 +750,7 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
                     out_conf[yy, xx] = 0.0
                     out_contrast[yy, xx] = 0.0
                     continue
-                out_gain[yy, xx] = flat[l] - lk[0]
+                out_gain[yy, xx] = flat[l] - plain
                 far = 0.0
                 every = 0.0
                 ek = 0.0
@@ -738,8 +765,9 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
                 if use_tail and count == 3 and flips.size * tail_weight * ek > TAIL_FLOOR and far < 1.0 + every - far:
                     for i in range(m):
                         buf[i] = R[i, l]
-                    tail = in_band * _tail_mass(buf, xs, rk, count, n, nbits, xtab, a, beta, packed, flips, flip_bits,
-                                                flip_w, tail_weight, wlo, whi, delta, sorted_d)
+                    tail = in_band * _tail_mass(buf, xs, rk, lk[0], count, n, nbits, xtab, a, beta, packed, flips,
+                                                flip_bits, flip_w, tail_weight, wlo, whi, ptab, pu0, pdu, pw0, pdw,
+                                                pout, use_prior, pmin, dn, ds, dq, delta, sorted_d)
                     far += tail
                     every += tail
                 out_err[yy, xx] = far / (1.0 + every)
@@ -753,15 +781,49 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
 
 
 @njit(cache=True, inline="always")
-def _tail_mass(buf, xs, rk, count, n, nbits, xtab, a, beta, packed, flips, flip_bits, flip_w, weight, wlo, whi,
-               delta, sorted_d):
-    """Sum of exp(-(L_c - L_1) / 2) over the codewords c = c1 xor h, h a codeword of weight
-    wlo..whi of a binary linear code, other than the candidates already scored: with c1's fitted
-    levels, flipping bit i costs delta_i and ``L_c - L_1 = sum over h's bits of delta_i``.  The
-    sum runs over `_flips`' evenly spaced sample of those h, times `weight` (their number / the
-    sample's), minus the scored candidates' own terms."""
-    b, c = _fit(buf, xs, rk[0], n, xtab)
-    # binary symbols: the levels b + c * x are b + c * 0 and b + c * 1, two variances, two logs
+def _word_cost(m, n1, tot, s1, sq, q1, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use_prior):
+    """-2 log posterior (up to the constant of `_posterior`'s ``lk``) of a binary codeword from
+    its sample sums: n1 samples of symbol 1 (white included) of m, ``tot`` / ``sq`` the sum of
+    all samples / their squares, ``s1`` / ``q1`` those of the symbol-1 samples.  The levels are
+    `_fit`'s least-squares (b, c >= 0) and L is `_nll`'s, in closed form; plus the level prior."""
+    den = m * n1 - n1 * n1
+    c = (m * s1 - n1 * tot) / den if den > 0 else 0.0
+    if c < 0.0:
+        c = 0.0
+    b = (tot - c * n1) / m
+    m1 = b + c
+    n0 = m - n1
+    v0 = a + beta * (b if b > 0.0 else 0.0)
+    v1 = a + beta * (m1 if m1 > 0.0 else 0.0)
+    ss0 = (sq - q1) - 2.0 * b * (tot - s1) + n0 * b * b
+    ss1 = q1 - 2.0 * m1 * s1 + n1 * m1 * m1
+    cost = (ss0 if ss0 > 0.0 else 0.0) / v0 + n0 * np.log(v0) + (ss1 if ss1 > 0.0 else 0.0) / v1 + n1 * np.log(v1)
+    if use_prior:
+        cost += cost_at(ptab, pu0, pdu, pw0, pdw, pout, b, c)
+    return cost
+
+
+@njit(cache=True, inline="always")
+def _tail_mass(buf, xs, rk, lbest, count, n, nbits, xtab, a, beta, packed, flips, flip_bits, flip_w, weight, wlo, whi,
+               ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin, dn, ds, dq, delta, sorted_d):
+    """Sum of exp(-(P_c - lbest) / 2) over the codewords c = c1 xor h, h a codeword of weight
+    wlo..whi of a binary linear code, other than the candidates already scored, where ``P_c``
+    is c's -2 log-likelihood with its own refitted levels plus the level prior (`_word_cost`),
+    and lbest that of the best candidate c1 = rk[0].  Flipping bit i moves its samples between
+    the symbol-1 and symbol-0 sums: dn_i / ds_i / dq_i are the changes of the count, the sum and
+    the sum of squares of the symbol-1 samples, so each word costs O(weight).  The sum runs over
+    `_flips`' evenly spaced sample of those h, times `weight` (their number / the sample's),
+    minus the scored candidates' own terms.
+
+    Skipped (0) where it is negligible for sure: under c1's levels flipping bit i costs
+    ``delta_i``, so a weight-w word costs at least the sum of the w smallest; refitting the levels
+    lowers a word's cost, without noise by the share d / m of its d flipped samples of m, at most
+    1 / 2 (`TAIL_REFIT_SHARE`), and the prior lowers it by at most ``pmin - P(c1's levels)`` (pmin
+    the table's least cost).  Where that bound times the number of words is below `TAIL_FLOOR`,
+    no word is evaluated."""
+    m = n + 2
+    b, c = _fit(buf, xs, rk[0], n, xtab)  # xs: c1's symbols of the m samples
+    # the bound: per-bit flip costs under c1's levels (two levels, two variances, two logs)
     m0 = b + c * 0.0
     m1 = b + c * 1.0
     v0 = a + beta * (m0 if m0 > 0.0 else 0.0)
@@ -781,31 +843,73 @@ def _tail_mass(buf, xs, rk, count, n, nbits, xtab, a, beta, packed, flips, flip_
         if n > nbits:
             delta[i] += delta[i + nbits]
         sorted_d[i] = delta[i]
-    # a weight-w flip costs at least the sum of the w smallest deltas: skip a negligible tail
     sort_small(sorted_d, nbits)
     lowest = 0.0
     for i in range(flip_w[0]):
         lowest += sorted_d[i]
-    if flips.size * weight * np.exp(-0.5 * min(max(lowest, -_CLIP), _CLIP)) < TAIL_FLOOR:
+    bound = TAIL_REFIT_SHARE * lowest
+    if use_prior:
+        bound += pmin - cost_at(ptab, pu0, pdu, pw0, pdw, pout, b, c)
+    if flips.size * weight * np.exp(-0.5 * min(max(bound, -_CLIP), _CLIP)) < TAIL_FLOOR:
         return 0.0
+    n1 = 0.0
+    tot = 0.0
+    sq = 0.0
+    s1 = 0.0
+    q1 = 0.0
+    for i in range(m):
+        r = buf[i]
+        tot += r
+        sq += r * r
+        if xs[i] != 0.0:
+            n1 += 1.0
+            s1 += r
+            q1 += r * r
+    for i in range(nbits):  # with inverse frames a bit flips a pattern and an inverse sample
+        dn[i] = 0.0
+        ds[i] = 0.0
+        dq[i] = 0.0
+        j = i
+        while j < n:
+            r = buf[j]
+            if xs[j] != 0.0:
+                dn[i] -= 1.0
+                ds[i] -= r
+                dq[i] -= r * r
+            else:
+                dn[i] += 1.0
+                ds[i] += r
+                dq[i] += r * r
+            j += nbits
     own = packed[rk[0]]
     total = 0.0
     for j in range(flips.size):
-        d = 0.0
+        wn = n1
+        ws = s1
+        wq = q1
         for t in range(flip_w[j]):
-            d += delta[flip_bits[j, t]]
+            bit = flip_bits[j, t]
+            wn += dn[bit]
+            ws += ds[bit]
+            wq += dq[bit]
+        d = _word_cost(m, wn, tot, ws, sq, wq, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use_prior) - lbest
         total += np.exp(-0.5 * min(max(d, -_CLIP), _CLIP))
     total *= weight
     # the scored candidates are not tail: take out what they add to the (estimated) sum
     for k in range(1, count):
         word = own ^ packed[rk[k]]
         bits = 0
-        d = 0.0
+        wn = n1
+        ws = s1
+        wq = q1
         for i in range(nbits):
             if (word >> np.uint64(i)) & np.uint64(1):
                 bits += 1
-                d += delta[i]
+                wn += dn[i]
+                ws += ds[i]
+                wq += dq[i]
         if wlo <= bits <= whi:
+            d = _word_cost(m, wn, tot, ws, sq, wq, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use_prior) - lbest
             total -= np.exp(-0.5 * min(max(d, -_CLIP), _CLIP))
     return total if total > 0.0 else 0.0
 
@@ -820,6 +924,10 @@ TAIL_WORDS = 1024
 #: below this (an error probability far below any target), and where the top three already
 #: give P(confused) >= 1/2 (invalid under any target; the published value is then a lower bound).
 TAIL_FLOOR = 1e-4
+#: The least share of a flip's cost under c1's levels that is left once the word's own levels are
+#: refitted (`_tail_mass`'s skip bound): without noise it is 1 - d / m for d flipped samples of m,
+#: and the tail's words have d <= m / 2.
+TAIL_REFIT_SHARE = 0.5
 
 
 def _xtab(code: Code, inverse: bool = False) -> np.ndarray:
@@ -837,8 +945,9 @@ def _xtab(code: Code, inverse: bool = False) -> np.ndarray:
 
 
 def _samples(frames: np.ndarray, inverse: np.ndarray | None) -> np.ndarray:
-    """The code samples of a capture: frames (n, H, W), or frames then inverse (2n, H, W)."""
-    return frames if inverse is None else np.concatenate([frames, inverse], axis=0)
+    """The code samples of a capture: frames (n, H, W), or frames then inverse (2n, H, W), C-contiguous
+    (the kernels read rows; one compiled layout per dtype)."""
+    return np.ascontiguousarray(frames) if inverse is None else np.concatenate([frames, inverse], axis=0)
 
 
 def _flips(code: Code) -> tuple:
@@ -904,7 +1013,7 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
                xtab, code.n, cand, searched,
                float(noise.a), float(noise.beta), packed, flips, flip_bits, flip_w, float(tail_weight), int(wlo), int(whi),
                min(1.0, choices / code.size), bool(np.isin(xtab, (0.0, 1.0)).all()), max(1, get_num_threads()),
-               out_cand, out_dist, competitors, gain, conf, contrast)
+               *kernel_args(noise.levels), out_cand, out_dist, competitors, gain, conf, contrast)
     fdr, idx = _not_lit_lookup(gain, code, choices, has_inv)
     err = np.empty((h, w), np.float32)
     _combine(idx, competitors, fdr, err)

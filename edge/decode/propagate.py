@@ -10,7 +10,7 @@ neighbours lie on, scored with the pixel's own likelihood.  The spatial prior
 
 Definitions.  A pixel is *confident* where its error probability is below ``max_error`` (the
 decoder's one target), else *uncertain*.  Every pixel p carries a *track*: a codebook row t(p)
-with its -2 log-likelihood l(p) (`edge.decode.posterior`'s ``L``), and an *extra* candidate
+with its -2 log-posterior l(p) (`edge.decode.posterior`'s distance ``L``), and an *extra* candidate
 e(p) with its l_e(p).
 
 * Initially t(p) = the best candidate c1(p) with l(p) = L_1(p) where p is confident; elsewhere
@@ -20,9 +20,9 @@ e(p) with its l_e(p).
   whose previous pixel q (one step back along the sweep, inside the image) has a track c = t(q):
 
   - the proposals are the rows c - 1, c, c + 1 inside [0, rows); each is scored by its
-    likelihood L at p: a top-3 candidate's posterior distance where it was scored, else
-    `edge.decode.posterior`'s negative log-likelihood with levels refitted to that row (the same
-    function and noise model);
+    L at p: a top-3 candidate's posterior distance where it was scored, else
+    `edge.decode.posterior`'s negative log-likelihood with levels refitted to that row plus the
+    capture's level prior (`Noise.levels`), as the posterior's distances are;
   - the best proposal c* (least L; ties: the lower row) is *plausible* where
     ``(L(c*) - L_1(p)) / 2 <= bound``, with ``bound = 4 * P2`` (`edge.decode.sgm.penalties`): the
     most the smoothness prior can pay for a state, four neighbours each saving at most one
@@ -48,6 +48,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..codes import Code
+from .level_prior import cost_at, kernel_args
 from .posterior import Noise, _nll, _samples, _xtab
 from .sgm import penalties
 
@@ -76,7 +77,7 @@ def _load(frames, white, black, scale, y, x, buf):
 
 
 @njit(cache=True, inline="always")
-def _visit(frames, white, black, scale, xtab, cand, dist, a, beta, bound, rows, y, x, c,
+def _visit(frames, white, black, scale, xtab, cand, dist, a, beta, prior, bound, rows, y, x, c,
            track, track_l, extra, extra_l, buf, xs):
     """One visit of uncertain pixel (y, x) with its previous pixel's track c (module docstring)."""
     n = frames.shape[0]
@@ -97,7 +98,9 @@ def _visit(frames, white, black, scale, xtab, cand, dist, a, beta, bound, rows, 
             if not loaded:
                 _load(frames, white, black, scale, y, x, buf)
                 loaded = True
-            lr, _, _ = _nll(buf, xs, r, n, xtab, a, beta, True)
+            lr, _, lc, lb = _nll(buf, xs, r, n, xtab, a, beta, True)
+            if prior[6]:  # the level prior, as the posterior's distances include it
+                lr += cost_at(prior[0], prior[1], prior[2], prior[3], prior[4], prior[5], lb, lc)
         if lr < best_l:
             best = r
             best_l = lr
@@ -115,7 +118,7 @@ def _visit(frames, white, black, scale, xtab, cand, dist, a, beta, bound, rows, 
 
 
 @njit(cache=True, parallel=True)
-def _sweep_rows(frames, white, black, scale, xtab, cand, dist, uncertain, a, beta, bound, rows, step,
+def _sweep_rows(frames, white, black, scale, xtab, cand, dist, uncertain, a, beta, prior, bound, rows, step,
                 track, track_l, extra, extra_l):
     n = frames.shape[0]
     height, width = uncertain.shape
@@ -126,12 +129,12 @@ def _sweep_rows(frames, white, black, scale, xtab, cand, dist, uncertain, a, bet
             x = i if step > 0 else width - 1 - i
             q = x - step
             if uncertain[y, x] and cand[y, x, 0] >= 0 and track[y, q] >= 0:
-                _visit(frames, white, black, scale, xtab, cand, dist, a, beta, bound, rows, y, x, track[y, q],
+                _visit(frames, white, black, scale, xtab, cand, dist, a, beta, prior, bound, rows, y, x, track[y, q],
                        track, track_l, extra, extra_l, buf, xs)
 
 
 @njit(cache=True, parallel=True)
-def _sweep_cols(frames, white, black, scale, xtab, cand, dist, uncertain, a, beta, bound, rows, step,
+def _sweep_cols(frames, white, black, scale, xtab, cand, dist, uncertain, a, beta, prior, bound, rows, step,
                 track, track_l, extra, extra_l):
     n = frames.shape[0]
     height, width = uncertain.shape
@@ -144,7 +147,7 @@ def _sweep_cols(frames, white, black, scale, xtab, cand, dist, uncertain, a, bet
             q = y - step
             for x in range(bx * _BLOCK, min(width, (bx + 1) * _BLOCK)):
                 if uncertain[y, x] and cand[y, x, 0] >= 0 and track[q, x] >= 0:
-                    _visit(frames, white, black, scale, xtab, cand, dist, a, beta, bound, rows, y, x, track[q, x],
+                    _visit(frames, white, black, scale, xtab, cand, dist, a, beta, prior, bound, rows, y, x, track[q, x],
                            track, track_l, extra, extra_l, buf, xs)
 
 
@@ -179,7 +182,7 @@ def propagate(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     xtab = _xtab(code, inverse is not None)
     bound = 4.0 * penalties(choices).p2
     args = (samples, white, black, np.float64(scale), xtab, cand, dist, ~confident, float(noise.a),
-            float(noise.beta), float(bound), rows)
+            float(noise.beta), kernel_args(noise.levels), float(bound), rows)
     for sweep, step in ((_sweep_rows, 1), (_sweep_rows, -1), (_sweep_cols, 1), (_sweep_cols, -1)):
         sweep(*args, step, track, track_l, extra, extra_l)
     out_cand = np.concatenate([cand, extra[..., None]], axis=2)

@@ -35,7 +35,8 @@ transition ``(1 - p_edge)(1 - f_steep) / 3`` (`penalties`, a `Prior`), previous 
 
 Unary costs U (nats, likelihood ratios against the best candidate):
 
-* candidate k: ``(L_k - L_1) / 2`` with ``L_k`` the -2 log-likelihood of candidate k
+* candidate k: ``(L_k - L_1) / 2`` with ``L_k`` the posterior's distance of candidate k (its
+  -2 log-likelihood plus the level prior's cost)
   (`edge.decode.posterior`'s ``distances``; under the "confidence" rule the search's ML
   distances, equal up to a per-pixel constant); absent: `BIG`;
 * none: ``-log(e0 / N)``, with e0 the posterior odds of its "not lit" hypothesis against the

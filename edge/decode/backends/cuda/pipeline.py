@@ -146,8 +146,8 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     Levels (`DecodeSettings.level_source`): "split" (``levels="auto"``, binary codes) splits each
     pixel's samples on the device (`posterior.split_levels` + `normalise`: the float32 stack the
     search reads); "refit" is `refit_stack`; otherwise the calibration levels.  Then the search,
-    the subgrid fit stats (the host fits the noise model
-    from them: `edge.decode.posterior._noise_from`), the posterior kernel, the gain histogram
+    the subgrid fit stats (the host fits the noise model and the level prior
+    from them: `edge.decode.posterior._noise_from`, `edge.decode.level_prior.level_prior`), the posterior kernel, the gain histogram
     (atomics; the host turns its counts into the not-lit lookup, `posterior.fdr_lookup`) and
     error / valid.  Host <-> device traffic besides the results: the split's compact fit stats
     (at most `FIT_PIXELS` pixels), the on / off levels where the ML search needs the CPU's
@@ -158,6 +158,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     "error", stats (the search's + noise_a, noise_beta, noise_fitted, rule, levels, level_source,
     and ``side_downloads``: (name, bytes) of the intermediate downloads)."""
     from ...decoder import band_choices
+    from ...level_prior import kernel_args, level_prior
     from ...posterior import (FIT_PIXELS, GAIN_BIN, SKIP_MARGIN, SPLIT_ITERATIONS, TAIL_FLOOR, _noise_from, _steps,
                               fdr_lookup, gain_bins)
 
@@ -203,10 +204,14 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     rows, cols = -(-h // sy), -(-w // sx)
     fs2 = buffer(buffers, "fit_s2", (rows, cols), np.float64, stream)
     fmu = buffer(buffers, "fit_mu", (rows, cols), np.float64, stream)
+    fb = buffer(buffers, "fit_b", (rows, cols), np.float64, stream)
+    fc = buffer(buffers, "fit_c", (rows, cols), np.float64, stream)
     post_k.fit_stats[_blocks(rows * cols, post_k.TPB), post_k.TPB, stream](
-        ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], cand, sy, sx, fs2, fmu)
+        ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], cand, sy, sx, fs2, fmu, fb, fc)
     noise = _noise_from(_fetch("fit_s2", fs2, stream, side), _fetch("fit_mu", fmu, stream, side), like,
                         float(scale), (s.sigma_r, s.sigma_s))
+    noise = noise._replace(levels=level_prior(_fetch("fit_b", fb, stream, side), _fetch("fit_c", fc, stream, side)))
+    ptab, pu0, pdu, pw0, pdw, pout, use_prior = kernel_args(noise.levels)
     choices = band_choices(columns, band, stripe)
     pc = buffer(buffers, "post_candidates", (h, w, 3), np.int32, stream)
     pd = buffer(buffers, "post_distances", (h, w, 3), np.float32, stream)
@@ -217,7 +222,9 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
         ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], int(code.n), cand, dist,
         float(SKIP_MARGIN), float(noise.a), float(noise.beta), tb["packed"], tb["flips"], tb["flip_bits"],
         tb["flip_w"], tb["weight"],
-        tb["wlo"], tb["whi"], min(1.0, choices / code.size), float(TAIL_FLOOR), pc, pd, comp, gain, pconf)
+        tb["wlo"], tb["whi"], min(1.0, choices / code.size), float(TAIL_FLOOR),
+        cuda.to_device(ptab, stream=stream), pu0, pdu, pw0, pdw, pout, use_prior, float(ptab.min()) if use_prior else 0.0,
+        pc, pd, comp, gain, pconf)
     median, nb = gain_bins(code, choices, ds.has_inv)
     counts = cuda.to_device(np.zeros(nb + 2, np.int64), stream=stream)
     post_k.gain_histogram[grid, post_k.TPB, stream](gain, float(GAIN_BIN), nb, float(median), counts)

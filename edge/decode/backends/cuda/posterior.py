@@ -12,10 +12,12 @@ then white and black, each ``float64(raw) * scale`` (`posterior._row_block`).
   pixels `posterior._noise_from` subsamples for its fit (every `step`-th pixel, row-major; NaN
   where a sample is clipped, which the host drops as the CPU does), so only those are
   downloaded.
-* `fit_stats`: `posterior._fit_stats` on the `posterior._steps` subgrid (downloaded whole: at
-  most `posterior.FIT_PIXELS` pixels).
-* `posterior_kernel`: `posterior._posterior` (the top-3 refit NLLs re-ordered by likelihood,
-  the flat hypothesis' gain ``L_0 - L_1``, the competitor mass with `_tail_mass`); writes
+* `fit_stats`: `posterior._fit_stats` on the `posterior._steps` subgrid (residual variance, mean
+  level and the levels (b, c) of the noise fit and the level prior; downloaded whole: at most
+  `posterior.FIT_PIXELS` pixels).
+* `posterior_kernel`: `posterior._posterior` (the top-3 refit NLLs plus the level prior
+  re-ordered, the flat hypothesis' gain ``L_0 - min L_k``, the competitor mass with `_tail_mass`,
+  every tail word refitted); writes
   candidates, distances, confidence, the gain and the competitor probability.
 * `gain_histogram`: the counts of `posterior.not_lit_probability` with atomics (bins of
   `posterior.gain_bins`, the finite gains, those below the null median): the host turns the
@@ -36,6 +38,8 @@ import math
 import numpy as np
 from numba import cuda
 
+from ...level_prior import C_FLOOR
+from ...posterior import TAIL_REFIT_SHARE
 from .cost import MAX_N, mul64, pixel_of, sort_small
 
 TPB = 128
@@ -176,7 +180,7 @@ def _fit(buf, xs, row, ns, xtab):
 
 
 @cuda.jit
-def fit_stats(frames, inverse, has_inv, white, black, scale, xtab, best, step_y, step_x, out_s2, out_mu):
+def fit_stats(frames, inverse, has_inv, white, black, scale, xtab, best, step_y, step_x, out_s2, out_mu, out_b, out_c):
     """`posterior._fit_stats`: out_* (rows, cols) float64 of the subgrid pixel (ry * step_y, rx * step_x)."""
     buf = cuda.local.array(MAX_M, np.float64)
     xs = cuda.local.array(MAX_M, np.float64)
@@ -194,9 +198,13 @@ def fit_stats(frames, inverse, has_inv, white, black, scale, xtab, best, step_y,
     if row < 0:
         out_s2[ry, rx] = np.nan
         out_mu[ry, rx] = np.nan
+        out_b[ry, rx] = np.nan
+        out_c[ry, rx] = np.nan
         return
     _load(frames, inverse, ns, n, white, black, scale, yy, xx, buf)
     b, c = _fit(buf, xs, row, ns, xtab)
+    out_b[ry, rx] = b
+    out_c[ry, rx] = c
     ssr = 0.0
     mu = 0.0
     for i in range(m):
@@ -210,7 +218,7 @@ def fit_stats(frames, inverse, has_inv, white, black, scale, xtab, best, step_y,
 
 @cuda.jit(device=True)
 def _nll(buf, xs, row, ns, xtab, a, beta, use_row):
-    """`posterior._nll`: (L, Mahalanobis part, contrast) of row `row` (use_row) or one flat level."""
+    """`posterior._nll`: (L, Mahalanobis part, contrast, off level) of row `row` (use_row) or one flat level."""
     m = ns + 2
     if use_row:
         b, c = _fit(buf, xs, row, ns, xtab)
@@ -248,7 +256,19 @@ def _nll(buf, xs, row, ns, xtab, a, beta, use_row):
             q = mul64(e, e) / v
             total += q + math.log(v)
         maha += q
-    return total, maha, c
+    return total, maha, c, b
+
+
+@cuda.jit(device=True)
+def _prior_cost(ptab, pu0, pdu, pw0, pdw, pout, b, c):
+    """`level_prior.cost_at`: -2 log p of levels (b, c) under the capture's level prior."""
+    bp = b if b > 0.0 else 0.0
+    cp = c if c > C_FLOOR else C_FLOOR
+    fu = math.floor((math.log10(cp) - pu0) / pdu)
+    fw = math.floor((bp / (bp + cp) - pw0) / pdw)
+    if fu < 0.0 or fu >= ptab.shape[0] or fw < 0.0 or fw >= ptab.shape[1]:
+        return pout
+    return ptab[int(fu), int(fw)]
 
 
 @cuda.jit(device=True)
@@ -258,9 +278,31 @@ def _clipped_exp(d):
 
 
 @cuda.jit(device=True)
-def _tail_mass(buf, xs, rk, count, ns, nbits, xtab, a, beta, packed, flips, flip_bits, flip_w, weight, wlo, whi,
-               floor, delta, sorted_d):
+def _word_cost(m, n1, tot, s1, sq, q1, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use_prior):
+    """`posterior._word_cost` (see there)."""
+    den = mul64(np.float64(m), n1) - mul64(n1, n1)
+    c = (mul64(np.float64(m), s1) - mul64(n1, tot)) / den if den > 0 else 0.0
+    if c < 0.0:
+        c = 0.0
+    b = (tot - mul64(c, n1)) / m
+    m1 = b + c
+    n0 = m - n1
+    v0 = a + mul64(beta, b if b > 0.0 else 0.0)
+    v1 = a + mul64(beta, m1 if m1 > 0.0 else 0.0)
+    ss0 = (sq - q1) - mul64(mul64(2.0, b), tot - s1) + mul64(mul64(n0, b), b)
+    ss1 = q1 - mul64(mul64(2.0, m1), s1) + mul64(mul64(n1, m1), m1)
+    cost = ((ss0 if ss0 > 0.0 else 0.0) / v0 + mul64(n0, math.log(v0)) + (ss1 if ss1 > 0.0 else 0.0) / v1
+            + mul64(n1, math.log(v1)))
+    if use_prior:
+        cost += _prior_cost(ptab, pu0, pdu, pw0, pdw, pout, b, c)
+    return cost
+
+
+@cuda.jit(device=True)
+def _tail_mass(buf, xs, rk, lbest, count, ns, nbits, xtab, a, beta, packed, flips, flip_bits, flip_w, weight, wlo, whi,
+               floor, ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin, dn, ds, dq, delta, sorted_d):
     """`posterior._tail_mass` (see there)."""
+    m = ns + 2
     b, c = _fit(buf, xs, rk[0], ns, xtab)
     for i in range(ns):
         mo = b + mul64(c, xs[i])
@@ -278,39 +320,84 @@ def _tail_mass(buf, xs, rk, count, ns, nbits, xtab, a, beta, packed, flips, flip
     lowest = 0.0
     for i in range(flip_w[0]):
         lowest += sorted_d[i]
-    nflips = flips.shape[0]
-    if mul64(mul64(np.float64(nflips), weight), _clipped_exp(lowest)) < floor:
+    bound = mul64(TAIL_REFIT_SHARE, lowest)
+    if use_prior:
+        bound += pmin - _prior_cost(ptab, pu0, pdu, pw0, pdw, pout, b, c)
+    if mul64(mul64(np.float64(flips.shape[0]), weight), _clipped_exp(bound)) < floor:
         return 0.0
+    n1 = 0.0
+    tot = 0.0
+    sq = 0.0
+    s1 = 0.0
+    q1 = 0.0
+    for i in range(m):
+        r = buf[i]
+        tot += r
+        sq += mul64(r, r)
+        if xs[i] != 0.0:
+            n1 += 1.0
+            s1 += r
+            q1 += mul64(r, r)
+    for i in range(nbits):
+        dn[i] = 0.0
+        ds[i] = 0.0
+        dq[i] = 0.0
+        j = i
+        while j < ns:
+            r = buf[j]
+            if xs[j] != 0.0:
+                dn[i] -= 1.0
+                ds[i] -= r
+                dq[i] -= mul64(r, r)
+            else:
+                dn[i] += 1.0
+                ds[i] += r
+                dq[i] += mul64(r, r)
+            j += nbits
     own = packed[rk[0]]
     total = 0.0
-    for j in range(nflips):
-        d = 0.0
+    for j in range(flips.shape[0]):
+        wn = n1
+        ws = s1
+        wq = q1
         for t in range(flip_w[j]):
-            d += delta[flip_bits[j, t]]
-        total += _clipped_exp(d)
+            bit = flip_bits[j, t]
+            wn += dn[bit]
+            ws += ds[bit]
+            wq += dq[bit]
+        total += _clipped_exp(_word_cost(m, wn, tot, ws, sq, wq, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use_prior)
+                              - lbest)
     total = mul64(total, weight)
     for k in range(1, count):
         word = own ^ packed[rk[k]]
         bits = 0
-        d = 0.0
+        wn = n1
+        ws = s1
+        wq = q1
         for i in range(nbits):
             if (word >> np.uint64(i)) & np.uint64(1):
                 bits += 1
-                d += delta[i]
+                wn += dn[i]
+                ws += ds[i]
+                wq += dq[i]
         if wlo <= bits and bits <= whi:
-            total -= _clipped_exp(d)
+            total -= _clipped_exp(_word_cost(m, wn, tot, ws, sq, wq, a, beta, ptab, pu0, pdu, pw0, pdw, pout,
+                                             use_prior) - lbest)
     return total if total > 0.0 else 0.0
 
 
 @cuda.jit
 def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits, cand, searched, skip_margin, a, beta,
                      packed, flips, flip_bits, flip_w, tail_weight, wlo, whi, in_band, floor,
-                     out_cand, out_dist, out_comp, out_gain, out_conf):
+                     ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin, out_cand, out_dist, out_comp, out_gain, out_conf):
     """`posterior._posterior` (without the contrast output, which the decoder does not use):
     searched (H, W, 3) float32 the search's distances; candidates more than `skip_margin` behind
     the best are not rescored (kept after the scored ones with distance inf)."""
     buf = cuda.local.array(MAX_M, np.float64)
     xs = cuda.local.array(MAX_M, np.float64)
+    dn = cuda.local.array(MAX_N, np.float64)
+    ds = cuda.local.array(MAX_N, np.float64)
+    dq = cuda.local.array(MAX_N, np.float64)
     delta = cuda.local.array(MAX_M, np.float64)
     sorted_d = cuda.local.array(MAX_N, np.float64)
     lk = cuda.local.array(3, np.float64)
@@ -325,6 +412,7 @@ def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits,
     _load(frames, inverse, ns, n, white, black, scale, yy, xx, buf)
     count = 0
     unscored = 0
+    plain = np.inf  # the least L_k without the prior (the not-lit gain's)
     for k in range(3):
         row = cand[yy, xx, k]
         if row < 0:
@@ -333,9 +421,11 @@ def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits,
             rest[unscored] = row
             unscored += 1
             continue
-        total, maha, c = _nll(buf, xs, row, ns, xtab, a, beta, True)
+        lr, maha, c, b = _nll(buf, xs, row, ns, xtab, a, beta, True)
+        plain = min(plain, lr)
+        total = lr + _prior_cost(ptab, pu0, pdu, pw0, pdw, pout, b, c) if use_prior else lr + 0.0
         j = count
-        while j > 0 and lk[j - 1] > total:  # insertion by likelihood (ties keep the search's order)
+        while j > 0 and lk[j - 1] > total:  # insertion by posterior (ties keep the search's order)
             lk[j] = lk[j - 1]
             mk[j] = mk[j - 1]
             rk[j] = rk[j - 1]
@@ -359,8 +449,8 @@ def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits,
         out_gain[yy, xx] = np.nan
         out_conf[yy, xx] = np.float32(0.0)
         return
-    l0, _m0, _c0 = _nll(buf, xs, 0, ns, xtab, a, beta, False)
-    out_gain[yy, xx] = l0 - lk[0]
+    l0, _m0, _c0, _b0 = _nll(buf, xs, 0, ns, xtab, a, beta, False)
+    out_gain[yy, xx] = l0 - plain
     far = 0.0
     every = 0.0
     ek = 0.0
@@ -372,8 +462,9 @@ def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits,
     nflips = flips.shape[0]
     if (nflips > 0 and count == 3 and mul64(mul64(np.float64(nflips), tail_weight), ek) > floor
             and far < 1.0 + every - far):
-        tail = mul64(in_band, _tail_mass(buf, xs, rk, count, ns, nbits, xtab, a, beta, packed, flips, flip_bits,
-                                         flip_w, tail_weight, wlo, whi, floor, delta, sorted_d))
+        tail = mul64(in_band, _tail_mass(buf, xs, rk, lk[0], count, ns, nbits, xtab, a, beta, packed, flips, flip_bits,
+                                         flip_w, tail_weight, wlo, whi, floor, ptab, pu0, pdu, pw0, pdw, pout,
+                                         use_prior, pmin, dn, ds, dq, delta, sorted_d))
         far += tail
         every += tail
     out_comp[yy, xx] = far / (1.0 + every)
