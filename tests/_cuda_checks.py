@@ -174,7 +174,7 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     off = rng.uniform(0.0, 0.1, 4000)
     prior = level_prior(off, rng.uniform(0.0, 0.6, 4000))
     beta = 1e-3
-    ptab, pu0, pdu, pw0, pdw, pout, use = kernel_args(prior)
+    ptab, pu0, pdu, pw0, pdw, pout, use, least = kernel_args(prior)
     packed, flips, flip_bits, flip_w, weight, wlo, whi = P._flips(code)
     scale = 1.0 / 255.0
     samples = P._samples(cap.frames, cap.inverse)
@@ -182,7 +182,8 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     ref = [np.empty((h, w, 3), np.int32), np.empty((h, w, 3), np.float32), np.empty((h, w)), np.empty((h, w)),
            np.empty((h, w), np.float32), np.empty((h, w), np.float32)]
     P._posterior(samples, white, black, scale, xtab, code.n, cand, searched, a, beta, packed, flips, flip_bits,
-                 flip_w, float(weight), int(wlo), int(whi), 1.0, True, 1, ptab, pu0, pdu, pw0, pdw, pout, use, *ref)
+                 flip_w, float(weight), int(wlo), int(whi), 1.0, True, 1, ptab, pu0, pdu, pw0, pdw, pout, use, least,
+                 *ref)
     tb = posterior_tables(code, inverse)
     out = [cuda.device_array((h, w, 3), np.int32), cuda.device_array((h, w, 3), np.float32),
            cuda.device_array((h, w)), cuda.device_array((h, w)), cuda.device_array((h, w), np.float32)]
@@ -192,7 +193,7 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
         cuda.to_device(cap.frames), inv, inverse, cuda.to_device(white), cuda.to_device(black), scale, tb["xtab"],
         int(code.n), cuda.to_device(cand), cuda.to_device(searched), float(P.SKIP_MARGIN), a, beta, tb["packed"],
         tb["flips"], tb["flip_bits"], tb["flip_w"], tb["weight"], tb["wlo"], tb["whi"], 1.0, float(P.TAIL_FLOOR),
-        cuda.to_device(ptab), pu0, pdu, pw0, pdw, pout, use, float(ptab.min()), *out)
+        cuda.to_device(ptab), pu0, pdu, pw0, pdw, pout, use, least, *out)
     got = [o.copy_to_host() for o in out]
     ok = np.array_equal(got[0], ref[0])
     close = [np.allclose(g, r, rtol=ERR_RTOL, atol=ERR_ATOL, equal_nan=True)
@@ -201,7 +202,7 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     top3 = [np.empty_like(r) for r in ref]
     P._posterior(samples, white, black, scale, xtab, code.n, cand, searched, a, beta, packed, np.zeros(0, np.uint64),
                  np.zeros((0, 1), np.int32), np.zeros(1, np.int32), 1.0, 0, 0, 1.0, True, 1, ptab, pu0, pdu, pw0,
-                 pdw, pout, use, *top3)
+                 pdw, pout, use, least, *top3)
     tails = int((ref[2] != top3[2]).sum())
     emit(name, ok and all(close) and use and 0 < tails,
          f"candidates equal {ok}, distances / competitors / gain / confidence close {close}, "
@@ -797,7 +798,7 @@ def main() -> int:
         ("staged-threads", lambda: check_staged_threads("staged-threads")),
         ("service-staged", lambda: check_service_staged("service-staged")),
         ("runtime-error-rule", lambda: check_runtime_error_rule("runtime-error-rule")),
-        # one thread per pixel runs ~1000 tail words: a few pixels, or the simulator takes minutes
+        # one thread per pixel refits hundreds of tail words: a few pixels, or the simulator takes minutes
         ("posterior-prior-ecc-22-10", lambda: check_posterior_prior("posterior-prior-ecc-22-10", "ecc-22-10", h=1,
                                                                     w=12)),
         ("posterior-prior-ecc-22-10-inverse", lambda: check_posterior_prior(

@@ -69,20 +69,24 @@ def _fit_reference(r: np.ndarray, x: np.ndarray) -> tuple[float, float]:
     return float(b), float(c)
 
 
-def _nll_reference(r: np.ndarray, x: np.ndarray | None, a: float, beta: float) -> float:
-    if x is None:
-        mu = np.full_like(r, r.mean())
-    else:
-        b, c = _fit_reference(r, x)
-        mu = b + c * x
+def _nll_at(r: np.ndarray, mu: np.ndarray, a: float, beta: float) -> float:
+    """Gaussian -2 log-likelihood of samples r about means mu, variance a + beta * max(mu, 0)."""
     v = a + beta * np.maximum(mu, 0)
     return float(((r - mu) ** 2 / v + np.log(v)).sum())
+
+
+def _nll_reference(r: np.ndarray, x: np.ndarray | None, a: float, beta: float) -> float:
+    if x is None:
+        return _nll_at(r, np.full_like(r, r.mean()), a, beta)
+    b, c = _fit_reference(r, x)
+    return _nll_at(r, b + c * x, a, beta)
 
 
 def _posterior_reference(r: np.ndarray, x: np.ndarray, a: float, beta: float, prior) -> float:
     """-2 log-posterior of one codeword (up to a constant): its refitted likelihood plus the
     level prior's cost at its levels."""
-    return _nll_reference(r, x, a, beta) + float(prior_cost(prior, *_fit_reference(r, x)))
+    b, c = _fit_reference(r, x)
+    return _nll_at(r, b + c * x, a, beta) + float(prior_cost(prior, b, c))
 
 
 def _tail_reference(r: np.ndarray, code, best: int, scored: list[int], a: float, beta: float, prior) -> float:

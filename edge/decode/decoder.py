@@ -93,8 +93,8 @@ class Decoded:
     error: (H, W) float32 estimated probability that ``candidates[..., 0]`` is more than one
         codebook row off (`edge.decode.posterior`; the "error" validity rule), else None.  Under
         that rule candidates / distances are the posterior's (re-ordered by it, distances the
-        negative log-likelihoods plus the capture's level prior, `edge.decode.level_prior`) and confidence is ``(d2 - d1) / d2`` of their Mahalanobis
-        parts; with method "sgm", candidates are re-ordered by aggregated cost and error is the
+        negative log-likelihoods plus the capture's level prior, `edge.decode.level_prior`) and
+        confidence is ``(d2 - d1) / d2`` of their Mahalanobis parts; with method "sgm", candidates are re-ordered by aggregated cost and error is the
         regularised one (`edge.decode.sgm`).
     """
 

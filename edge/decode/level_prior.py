@@ -72,11 +72,9 @@ def _robust_scale(v: np.ndarray) -> float:
 
 
 def _gauss(cells: int, sigma_cells: float) -> np.ndarray:
-    """(cells, cells) matrix of a Gaussian convolution along one axis, sigma in cells (zero
+    """(cells, cells) matrix of a Gaussian convolution along one axis, sigma (> 0) in cells (zero
     outside the grid: mass smoothed off the grid is lost, as it would be beyond the sample)."""
     t = np.arange(cells, dtype=np.float64)
-    if sigma_cells <= 0.0:
-        return np.eye(cells)
     kern = np.exp(-0.5 * ((t[:, None] - t[None, :]) / sigma_cells) ** 2)
     return kern / (sigma_cells * np.sqrt(2.0 * np.pi))
 
@@ -125,14 +123,16 @@ def prior_cost(prior: LevelPrior | None, b: np.ndarray, c: np.ndarray) -> np.nda
 
 
 #: A flat prior in the kernels' argument form (`kernel_args`).
-_FLAT = (np.zeros((1, 1), np.float64), 0.0, 1.0, 0.0, 1.0, 0.0, False)
+_FLAT = (np.zeros((1, 1), np.float64), 0.0, 1.0, 0.0, 1.0, 0.0, False, 0.0)
 
 
 def kernel_args(prior: LevelPrior | None) -> tuple:
-    """(cost, u0, du, w0, dw, outside, use) for `cost_at` (use False: the flat prior)."""
+    """(cost, u0, du, w0, dw, outside, use, least) for the kernels: the first six are `cost_at`'s,
+    use False for the flat prior, least the table's least cost (the tail mass's skip bound)."""
     if prior is None:
         return _FLAT
-    return (prior.cost, float(prior.u0), float(prior.du), float(prior.w0), float(prior.dw), float(prior.outside), True)
+    return (prior.cost, float(prior.u0), float(prior.du), float(prior.w0), float(prior.dw), float(prior.outside), True,
+            float(prior.cost.min()))
 
 
 @njit(cache=True, inline="always")

@@ -47,8 +47,9 @@ Three pure steps over numpy arrays (numba kernels, one pass over the pixels each
      far competitor's flat-prior odds overstate it where the scene has no pixels at its levels;
      without the refit the tail words, scored under c1's levels, lose about 3/4 of their mass.
    * ``P(not lit)`` (shadow, outside the projector): a local false-discovery rate on the gain
-     ``L_0 - min_k L_k`` (likelihoods, no prior), whose law for unlit pixels is known (`_null`); the share of unlit pixels and
-     the density of the gain come from the capture (`not_lit_probability`).
+     ``L_0 - min_k L_k`` (likelihoods, no prior), whose law for unlit pixels is known (`_null`);
+     the share of unlit pixels and the density of the gain come from the capture
+     (`not_lit_probability`).
 
    Candidates come back re-ordered by P_k.
 
@@ -629,7 +630,7 @@ def _interleaved(j, chunk, k):
 
 @njit(cache=True, parallel=True)
 def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta, packed, flips, flip_bits, flip_w,
-               tail_weight, wlo, whi, in_band, binary, threads, ptab, pu0, pdu, pw0, pdw, pout, use_prior,
+               tail_weight, wlo, whi, in_band, binary, threads, ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin,
                out_cand, out_dist, out_err, out_gain, out_conf, out_contrast):
     """Step 3 per pixel, LANES pixels of a row at a time: the hypotheses' NLLs lane-parallel
     (`_lane_nll`, `_lane_flat`; `_nll` per lane where the code is not binary), then each pixel's
@@ -639,7 +640,6 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
     m = n + 2
     L = LANES
     use_tail = flips.size > 0
-    pmin = ptab.min() if use_prior else 0.0
     chunk = (height + threads - 1) // threads
     for it in prange(chunk * threads):
         yy = _interleaved(it, chunk, threads)

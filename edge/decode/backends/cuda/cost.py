@@ -87,6 +87,7 @@ def pixel_of(p, height, width):
     yy = p // width
     return yy, p - yy * width, p < height * width
 
+
 @cuda.jit(device=True)
 def sort_small(a, m):
     """`kernels.sort_small` on the device: a[:m] sorted ascending in place (insertion sort)."""

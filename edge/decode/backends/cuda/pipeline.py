@@ -211,7 +211,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     noise = _noise_from(_fetch("fit_s2", fs2, stream, side), _fetch("fit_mu", fmu, stream, side), like,
                         float(scale), (s.sigma_r, s.sigma_s))
     noise = noise._replace(levels=level_prior(_fetch("fit_b", fb, stream, side), _fetch("fit_c", fc, stream, side)))
-    ptab, pu0, pdu, pw0, pdw, pout, use_prior = kernel_args(noise.levels)
+    ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin = kernel_args(noise.levels)
     choices = band_choices(columns, band, stripe)
     pc = buffer(buffers, "post_candidates", (h, w, 3), np.int32, stream)
     pd = buffer(buffers, "post_distances", (h, w, 3), np.float32, stream)
@@ -223,8 +223,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
         float(SKIP_MARGIN), float(noise.a), float(noise.beta), tb["packed"], tb["flips"], tb["flip_bits"],
         tb["flip_w"], tb["weight"],
         tb["wlo"], tb["whi"], min(1.0, choices / code.size), float(TAIL_FLOOR),
-        cuda.to_device(ptab, stream=stream), pu0, pdu, pw0, pdw, pout, use_prior, float(ptab.min()) if use_prior else 0.0,
-        pc, pd, comp, gain, pconf)
+        cuda.to_device(ptab, stream=stream), pu0, pdu, pw0, pdw, pout, use_prior, pmin, pc, pd, comp, gain, pconf)
     median, nb = gain_bins(code, choices, ds.has_inv)
     counts = cuda.to_device(np.zeros(nb + 2, np.int64), stream=stream)
     post_k.gain_histogram[grid, post_k.TPB, stream](gain, float(GAIN_BIN), nb, float(median), counts)
