@@ -780,7 +780,7 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
                 out_contrast[yy, xx] = ck[0]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _word_cost(m, n1, tot, s1, sq, q1, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use_prior):
     """-2 log posterior (up to the constant of `_posterior`'s ``lk``) of a binary codeword from
     its sample sums: n1 samples of symbol 1 (white included) of m, ``tot`` / ``sq`` the sum of
