@@ -163,7 +163,7 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     from edge.decode import posterior as P
     from edge.decode.backends.cuda import posterior as post_k
     from edge.decode.backends.cuda.pipeline import posterior_tables
-    from edge.decode.level_prior import kernel_args, level_prior
+    from edge.decode.level_prior import contrast_edges, kernel_args, level_prior
 
     code = get_code(code_name)
     cap, white, black = capture(code, h, w, inverse=inverse, band_center=4, dark=0.1, seed=5)
@@ -175,15 +175,15 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     prior = level_prior(off, rng.uniform(0.0, 0.6, 4000))
     beta = 1e-3
     ptab, pu0, pdu, pw0, pdw, pout, use, least = kernel_args(prior)
-    packed, flips, flip_bits, flip_w, weight, wlo, whi = P._flips(code)
+    packed, flips, _, _, weight, wlo, whi = P._flips(code)
     scale = 1.0 / 255.0
     samples = P._samples(cap.frames, cap.inverse)
     xtab = P._xtab(code, inverse)
     ref = [np.empty((h, w, 3), np.int32), np.empty((h, w, 3), np.float32), np.empty((h, w)), np.empty((h, w)),
            np.empty((h, w), np.float32), np.empty((h, w), np.float32)]
-    P._posterior(samples, white, black, scale, xtab, code.n, cand, searched, a, beta, packed, flips, flip_bits,
-                 flip_w, float(weight), int(wlo), int(whi), 1.0, True, 1, ptab, pu0, pdu, pw0, pdw, pout, use, least,
-                 *ref)
+    P._posterior(samples, white, black, scale, xtab, code.n, cand, searched, a, beta, packed, flips,
+                 P._flip_columns(code), float(weight), int(wlo), int(whi), 1.0, True, 1, ptab, pu0, pdu, pw0, pdw, pout,
+                 use, least, contrast_edges(prior), P._skip_cost(flips.size * weight), *ref)
     tb = posterior_tables(code, inverse)
     out = [cuda.device_array((h, w, 3), np.int32), cuda.device_array((h, w, 3), np.float32),
            cuda.device_array((h, w)), cuda.device_array((h, w)), cuda.device_array((h, w), np.float32)]
@@ -201,8 +201,8 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     # pixels whose competitor mass (ref[2]) has a tail term: it differs from the top three's alone
     top3 = [np.empty_like(r) for r in ref]
     P._posterior(samples, white, black, scale, xtab, code.n, cand, searched, a, beta, packed, np.zeros(0, np.uint64),
-                 np.zeros((0, 1), np.int32), np.zeros(1, np.int32), 1.0, 0, 0, 1.0, True, 1, ptab, pu0, pdu, pw0,
-                 pdw, pout, use, least, *top3)
+                 np.zeros((1, 0), np.float64), 1.0, 0, 0, 1.0, True, 1, ptab, pu0, pdu, pw0, pdw, pout, use, least,
+                 contrast_edges(prior), P._skip_cost(1.0), *top3)
     tails = int((ref[2] != top3[2]).sum())
     emit(name, ok and all(close) and use and 0 < tails,
          f"candidates equal {ok}, distances / competitors / gain / confidence close {close}, "

@@ -81,3 +81,25 @@ def test_coordinates_clamp_negative_offsets_and_zero_contrast():
     u, w = coordinates(np.array([-0.1, 0.2]), np.array([0.0, 0.2]))
     assert u[0] == np.log10(C_FLOOR) and w[0] == 0.0
     assert u[1] == pytest.approx(np.log10(0.2)) and w[1] == pytest.approx(0.5)
+
+
+def test_contrast_edges_give_the_u_cells_of_the_lookup():
+    """The tail's u-cell (the count of `contrast_edges` at or below c, less one) is the lookup's
+    ``floor((log10 c - u0) / du)`` wherever c is not within rounding of an edge; below / above
+    the grid it is off the grid on both."""
+    from edge.decode.level_prior import contrast_edges
+
+    rng = np.random.default_rng(3)
+    prior = level_prior(*_levels_from(rng.normal(-1.0, 0.3, 5000), rng.uniform(0.1, 0.6, 5000)))
+    edges = contrast_edges(prior)
+    assert edges.shape == (prior.cost.shape[0] + 1,) and np.all(np.diff(edges) > 0)
+    c = 10.0 ** rng.uniform(prior.u0 - 0.5, prior.u0 + prior.du * prior.cost.shape[0] + 0.5, 20000)
+    away = np.abs((np.log10(c) - prior.u0) / prior.du - np.round((np.log10(c) - prior.u0) / prior.du)) > 1e-9
+    counted = np.searchsorted(edges, c, side="right") - 1
+    floor = np.floor((np.log10(c) - prior.u0) / prior.du)
+    rows = prior.cost.shape[0]
+    off = (floor < 0) | (floor >= rows)
+    assert np.array_equal(counted[away & ~off], floor[away & ~off].astype(int))
+    assert np.all((counted[off] < 0) | (counted[off] >= rows))
+    assert off.any() and (~off).sum() > 10000
+    assert contrast_edges(None).tolist() == [np.inf]

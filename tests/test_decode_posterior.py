@@ -373,3 +373,51 @@ def _poisson_interval(k: int, level: float = 0.99) -> tuple[float, float]:
     low = 0.0 if k == 0 else solve(lambda mu: 1.0 - cdf(k - 1, mu) < tail, 0.0, top)
     high = solve(lambda mu: cdf(k, mu) > tail, 0.0, top)
     return low, high
+
+
+@pytest.mark.parametrize("with_prior, reference", [(True, 1.0), (False, 1.0), (True, 4.0)])
+def test_tail_words_match_the_exact_sum_over_words(with_prior, reference):
+    """`posterior._tail_words` (vectorised passes, series logs, prior cells by edge counting, words
+    beyond the skip left out) against the plain sum of `_word_cost` over every word: within
+    what the skip may leave out (words x exp(-skip / 2)) plus 1e-9 relative.  ``reference`` 4:
+    the series' reference variances are 4x off, so that the words go by the exact path."""
+    from edge.decode import posterior as P
+    from edge.decode.level_prior import contrast_edges, kernel_args
+
+    code = ECC
+    columns = P._flip_columns(code)
+    words = columns.shape[1]
+    packed, flips, _, _, weight, _, _ = P._flips(code)
+    rng = np.random.default_rng(11)
+    prior = level_prior(rng.normal(0.1, 0.03, 4000), np.abs(rng.normal(0.25, 0.08, 4000))) if with_prior else None
+    ptab, pu0, pdu, pw0, pdw, pout, use, _ = kernel_args(prior)
+    edges = contrast_edges(prior)
+    a, beta = 1e-4, 2e-3
+    skip = P._skip_cost(words * weight)
+    work = np.empty((8, words))
+    exact_path = 0
+    for trial in range(40):
+        best = rng.integers(0, code.size)
+        x = np.r_[code.codebook[best], 1, 0].astype(np.float64)
+        sigma = (0.01, 0.05, 0.12)[trial % 3]
+        r = np.abs(0.1 + 0.25 * x + rng.normal(0, sigma, x.size))
+        m = x.size
+        n1, s1, q1, tot, sq = x.sum(), (x * r).sum(), (x * r * r).sum(), r.sum(), (r * r).sum()
+        sign = np.where(x[:code.n] != 0, -1.0, 1.0)
+        dn, ds, dq = sign, sign * r[:code.n], sign * r[:code.n] ** 2
+        c1 = max((m * s1 - n1 * tot) / (m * n1 - n1 * n1), 0.0)
+        b1 = (tot - c1 * n1) / m
+        vr0, vr1 = (a + beta * max(b1, 0.0)) * reference, (a + beta * max(b1 + c1, 0.0)) * reference
+        lbest = P._word_cost(m, n1, tot, s1, sq, q1, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use)
+        got = P._tail_words(m, columns, dn, ds, dq, n1, s1, q1, tot, sq, a, beta, vr0, vr1, np.log(vr0), np.log(vr1),
+                            ptab, pu0, pdu, pw0, pdw, pout, use, edges, lbest, skip, work)
+        exact_path += int(work[6].sum())
+        want = 0.0
+        for j in range(words):
+            bits = columns[:, j]
+            d = P._word_cost(m, n1 + bits @ dn, tot, s1 + bits @ ds, sq, q1 + bits @ dq, a, beta, ptab, pu0, pdu,
+                             pw0, pdw, pout, use) - lbest
+            want += np.exp(-0.5 * max(d, -700.0))
+        assert abs(got - want) <= words * np.exp(-skip / 2) + 1e-9 * want, (trial, got, want)
+    if reference > 1.0:
+        assert exact_path > 0.5 * 40 * words  # the exact path was taken, and agrees

@@ -135,6 +135,16 @@ def kernel_args(prior: LevelPrior | None) -> tuple:
             float(prior.cost.min()))
 
 
+def contrast_edges(prior: LevelPrior | None) -> np.ndarray:
+    """(GRID + 1,) float64 edges of the prior's u-cells as contrasts, ``10 ** (u0 + i du)``
+    ascending: the cell of contrast c is the number of edges <= c, less one (that of
+    ``log10 c`` to rounding at the edges; below the first edge off the grid).  (1,) [inf] for the
+    flat prior."""
+    if prior is None:
+        return np.full(1, np.inf)
+    return 10.0 ** (prior.u0 + prior.du * np.arange(prior.cost.shape[0] + 1, dtype=np.float64))
+
+
 @njit(cache=True, inline="always")
 def cost_at(table, u0, du, w0, dw, outside, b, c):
     """`prior_cost` of one pixel's levels (b, c) in a kernel (table = `LevelPrior.cost`)."""

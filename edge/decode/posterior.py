@@ -60,9 +60,13 @@ Implementation (results do not depend on it): `_split_levels` and `_posterior` t
 consecutive pixels of a row at a time with branch-free loops over the lanes; each pixel's sums
 still run over its samples in the order above with the same operations, so every value is the
 one-pixel-at-a-time value bit for bit.  A binary code's levels take two values, so the tail's
-flip costs take two logs per pixel; P(not lit) and P(wrong) are one binning and one combining
-pass; `_posterior` interleaves the rows over the threads (the tail mass makes hard regions far
-costlier).  The search's input under the split levels is `normalised32` (float32 frames, one pass).
+flip costs take two logs per pixel.  The tail's words (`_tail_words`) are scored in branch-free
+passes over all of a pixel's words at once (vectorised), with each word's two log-variances by a
+series about c1's (to 2e-11) and its prior cell by counting cell edges, and words whose odds are
+below exp(-skip / 2) are left out of the sum (together less than `TAIL_ACCURACY`; the CUDA backend
+sums every word exactly, and the two agree to that).  P(not lit) and P(wrong) are one binning
+and one combining pass; `_posterior` interleaves the rows over the threads (the tail mass makes
+hard regions far costlier).  The search's input under the split levels is `normalised32` (float32 frames, one pass).
 """
 
 from __future__ import annotations
@@ -74,7 +78,7 @@ from numba import get_num_threads, njit, prange
 
 from ..codes import Code
 from .kernels import sort_small
-from .level_prior import LevelPrior, cost_at, kernel_args, level_prior
+from .level_prior import C_FLOOR, LevelPrior, contrast_edges, cost_at, kernel_args, level_prior
 
 #: Smallest on - off contrast (normalised units) the split levels keep, so that the search
 #: kernels, which need white > black, decode every pixel.
@@ -629,9 +633,9 @@ def _interleaved(j, chunk, k):
 
 
 @njit(cache=True, parallel=True)
-def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta, packed, flips, flip_bits, flip_w,
+def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta, packed, flips, columns,
                tail_weight, wlo, whi, in_band, binary, threads, ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin,
-               out_cand, out_dist, out_err, out_gain, out_conf, out_contrast):
+               edges, skip, out_cand, out_dist, out_err, out_gain, out_conf, out_contrast):
     """Step 3 per pixel, LANES pixels of a row at a time: the hypotheses' NLLs lane-parallel
     (`_lane_nll`, `_lane_flat`; `_nll` per lane where the code is not binary), then each pixel's
     ordering, odds and tail mass.  Rows interleaved over the `threads` threads (`_interleaved`:
@@ -653,6 +657,8 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
         dn = np.empty(n, np.float64)
         ds = np.empty(n, np.float64)
         dq = np.empty(n, np.float64)
+        words = columns.shape[1]
+        work = np.empty((8, words), np.float64)
         delta = np.empty(n, np.float64)
         sorted_d = np.empty(n, np.float64)
         sr = np.empty(L, np.float64)
@@ -669,6 +675,7 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
         ck = np.empty(3, np.float64)
         rk = np.empty(3, np.int32)
         rest = np.empty(3, np.int32)
+        prior = (ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin, edges)
         for x0 in range(0, width, L):
             _lane_samples(frames, white, black, scale, yy, x0, R)
             for l in range(L):
@@ -766,8 +773,8 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
                     for i in range(m):
                         buf[i] = R[i, l]
                     tail = in_band * _tail_mass(buf, xs, rk, lk[0], count, n, nbits, xtab, a, beta, packed, flips,
-                                                flip_bits, flip_w, tail_weight, wlo, whi, ptab, pu0, pdu, pw0, pdw,
-                                                pout, use_prior, pmin, dn, ds, dq, delta, sorted_d)
+                                                columns, tail_weight, wlo, whi, prior, skip, dn, ds, dq, delta,
+                                                sorted_d, work)
                     far += tail
                     every += tail
                 out_err[yy, xx] = far / (1.0 + every)
@@ -804,8 +811,8 @@ def _word_cost(m, n1, tot, s1, sq, q1, a, beta, ptab, pu0, pdu, pw0, pdw, pout, 
 
 
 @njit(cache=True, inline="always")
-def _tail_mass(buf, xs, rk, lbest, count, n, nbits, xtab, a, beta, packed, flips, flip_bits, flip_w, weight, wlo, whi,
-               ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin, dn, ds, dq, delta, sorted_d):
+def _tail_mass(buf, xs, rk, lbest, count, n, nbits, xtab, a, beta, packed, flips, columns, weight, wlo, whi, prior,
+               skip, dn, ds, dq, delta, sorted_d, work):
     """Sum of exp(-(P_c - lbest) / 2) over the codewords c = c1 xor h, h a codeword of weight
     wlo..whi of a binary linear code, other than the candidates already scored, where ``P_c``
     is c's -2 log-likelihood with its own refitted levels plus the level prior (`_word_cost`),
@@ -820,7 +827,10 @@ def _tail_mass(buf, xs, rk, lbest, count, n, nbits, xtab, a, beta, packed, flips
     lowers a word's cost, without noise by the share d / m of its d flipped samples of m, at most
     1 / 2 (`TAIL_REFIT_SHARE`), and the prior lowers it by at most ``pmin - P(c1's levels)`` (pmin
     the table's least cost).  Where that bound times the number of words is below `TAIL_FLOOR`,
-    no word is evaluated."""
+    no word is evaluated.  Else the sampled words are `_tail_words`' (columns: `_flip_columns`;
+    skip: `_skip_cost`); prior: the kernel form of the level prior with its cell edges, (table,
+    u0, du, w0, dw, outside, use, least, edges); work: (8, L) float64 scratch."""
+    ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin, edges = prior
     m = n + 2
     b, c = _fit(buf, xs, rk[0], n, xtab)  # xs: c1's symbols of the m samples
     # the bound: per-bit flip costs under c1's levels (two levels, two variances, two logs)
@@ -845,7 +855,7 @@ def _tail_mass(buf, xs, rk, lbest, count, n, nbits, xtab, a, beta, packed, flips
         sorted_d[i] = delta[i]
     sort_small(sorted_d, nbits)
     lowest = 0.0
-    for i in range(flip_w[0]):
+    for i in range(wlo):
         lowest += sorted_d[i]
     bound = TAIL_REFIT_SHARE * lowest
     if use_prior:
@@ -882,18 +892,8 @@ def _tail_mass(buf, xs, rk, lbest, count, n, nbits, xtab, a, beta, packed, flips
                 dq[i] += r * r
             j += nbits
     own = packed[rk[0]]
-    total = 0.0
-    for j in range(flips.size):
-        wn = n1
-        ws = s1
-        wq = q1
-        for t in range(flip_w[j]):
-            bit = flip_bits[j, t]
-            wn += dn[bit]
-            ws += ds[bit]
-            wq += dq[bit]
-        d = _word_cost(m, wn, tot, ws, sq, wq, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use_prior) - lbest
-        total += np.exp(-0.5 * min(max(d, -_CLIP), _CLIP))
+    total = _tail_words(m, columns, dn, ds, dq, n1, s1, q1, tot, sq, a, beta, v0, v1, g0, g1, ptab, pu0, pdu, pw0,
+                        pdw, pout, use_prior, edges, lbest, skip, work)
     total *= weight
     # the scored candidates are not tail: take out what they add to the (estimated) sum
     for k in range(1, count):
@@ -912,6 +912,171 @@ def _tail_mass(buf, xs, rk, lbest, count, n, nbits, xtab, a, beta, packed, flips
             d = _word_cost(m, wn, tot, ws, sq, wq, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use_prior) - lbest
             total -= np.exp(-0.5 * min(max(d, -_CLIP), _CLIP))
     return total if total > 0.0 else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _tail_words(m, columns, dn, ds, dq, n1, s1, q1, tot, sq, a, beta, vr0, vr1, g0, g1, ptab, pu0, pdu, pw0, pdw, pout,
+                use_prior, edges, lbest, skip, work):
+    """`_tail_mass`'s sum over the sampled words, before the weight: the sum of exp(-(P_c -
+    lbest) / 2) over the words whose ``P_c - lbest <= skip`` (each of the rest adds less than
+    exp(-skip / 2)).
+
+    columns (nbits, L) float64 0/1: column j the bits word j flips (`_flip_columns`); dn / ds /
+    dq (>= nbits,): `_tail_mass`'s per-bit changes; n1 / s1 / q1, tot / sq: c1's sums as
+    `_word_cost` takes them; vr0 / vr1: the variances of c1's levels, g0 / g1 their logs; edges
+    (GRID + 1,): the prior's u-cell edges as contrasts (`level_prior.contrast_edges`).
+
+    Each word's P_c is `_word_cost`'s, with the same operations, except for two things:
+    * the logs ``ln(v / vr)`` of its two variances are the series ``2 (z + z**3 / 3 + ... +
+      z**19 / 19)`` of ``2 atanh z``, ``z = (v - vr) / (v + vr)``, whose truncation error is
+      below 2e-11 where ``|z| <= 1/3`` (the words refit variances near c1's); elsewhere the word
+      is `_word_cost` exactly;
+    * its u-cell is the count of edges at or below its contrast, less one: the cell of
+      ``log10 c``, up to rounding at the edges.
+    The words are scored in branch-free passes over all of them at once (vectorised), then one
+    pass adds the prior cells and one sums the exponentials of the words within the skip.
+    work: (8, L) float64 scratch (per word: symbol-1 count, sum, sum of squares, cost, contrast,
+    w-cell, exact-path flag, u-cell + 1)."""
+    wn = work[0]
+    ws = work[1]
+    wq = work[2]
+    cost = work[3]
+    cw = work[4]
+    fw = work[5]
+    exact = work[6]
+    fu = work[7]
+    words = columns.shape[1]
+    for j in range(words):
+        wn[j] = n1
+        ws[j] = s1
+        wq[j] = q1
+    for i in range(columns.shape[0]):  # bit by bit in ascending order, as the scalar sums (x + 0 * d is x)
+        en = dn[i]
+        es = ds[i]
+        eq = dq[i]
+        row = columns[i]
+        for j in range(words):
+            f = row[j]
+            wn[j] += f * en
+            ws[j] += f * es
+            wq[j] += f * eq
+    third = 1.0 / 3.0
+    cmin = np.inf
+    cmax = 0.0
+    for j in range(words):
+        tn = wn[j]
+        t1 = ws[j]
+        tq = wq[j]
+        den = m * tn - tn * tn
+        c = (m * t1 - tn * tot) / den if den > 0 else 0.0
+        c = c if c > 0.0 else 0.0
+        b = (tot - c * tn) / m
+        m1 = b + c
+        n0 = m - tn
+        v0 = a + beta * (b if b > 0.0 else 0.0)
+        v1 = a + beta * (m1 if m1 > 0.0 else 0.0)
+        ss0 = (sq - tq) - 2.0 * b * (tot - t1) + n0 * b * b
+        ss1 = tq - 2.0 * m1 * t1 + tn * m1 * m1
+        z0 = (v0 - vr0) / (v0 + vr0)
+        z1 = (v1 - vr1) / (v1 + vr1)
+        bp = b if b > 0.0 else 0.0
+        cp = c if c > C_FLOOR else C_FLOOR
+        cost[j] = ((ss0 if ss0 > 0.0 else 0.0) / v0 + n0 * (g0 + _atanh2(z0))
+                   + (ss1 if ss1 > 0.0 else 0.0) / v1 + tn * (g1 + _atanh2(z1)))
+        exact[j] = 0.0 if abs(z0) <= third and abs(z1) <= third else 1.0
+        cw[j] = cp
+        fw[j] = np.floor((bp / (bp + cp) - pw0) / pdw)
+    rows = ptab.shape[0]
+    cols = ptab.shape[1]
+    table = ptab.ravel()
+    if use_prior:
+        for j in range(words):  # (apart from the pass above: a float min / max keeps it from vectorising)
+            cmin = min(cmin, cw[j])
+            cmax = max(cmax, cw[j])
+        # edges at or below every word's contrast: lo; at or below none: from hi on
+        lo = 0
+        while lo < edges.size and edges[lo] <= cmin:
+            lo += 1
+        hi = lo
+        while hi < edges.size and edges[hi] <= cmax:
+            hi += 1
+        for j in range(words):
+            fu[j] = lo
+        for e in range(lo, hi):
+            edge = edges[e]
+            for j in range(words):
+                fu[j] += 1.0 if cw[j] >= edge else 0.0
+        # each word's P_c - lbest (in cost): the prior's cell added
+        for j in range(words):
+            iu = fu[j] - 1.0
+            iw = fw[j]
+            inside = iu >= 0.0 and iu < rows and iw >= 0.0 and iw < cols
+            cell = table[int(iu if inside else 0.0) * cols + int(iw if inside else 0.0)]
+            cost[j] = cost[j] - lbest + (cell if inside else pout)
+    else:
+        for j in range(words):
+            cost[j] = cost[j] - lbest
+    for j in range(words):  # the words for the exact path
+        if exact[j] != 0.0:
+            cost[j] = _word_cost(m, wn[j], tot, ws[j], sq, wq[j], a, beta, ptab, pu0, pdu, pw0, pdw, pout,
+                                 use_prior) - lbest
+    # the words within the skip, in order (branch-free; their indices in fw, done with), then their odds
+    kept = 0
+    for j in range(words):
+        fw[kept] = j
+        kept += 1 if cost[j] <= skip else 0
+    total = 0.0
+    for t in range(kept):
+        d = cost[int(fw[t])]
+        total += np.exp(-0.5 * (d if d > -_CLIP else -_CLIP))
+    return total
+
+
+@njit(cache=True, inline="always")
+def _atanh2(z):
+    """2 atanh z = ln((1 + z) / (1 - z)) by its series to z**19 (|z| <= 1/3: error below 2e-11)."""
+    z2 = z * z
+    p = 1.0 / 19.0
+    p = 1.0 / 17.0 + z2 * p
+    p = 1.0 / 15.0 + z2 * p
+    p = 1.0 / 13.0 + z2 * p
+    p = 1.0 / 11.0 + z2 * p
+    p = 1.0 / 9.0 + z2 * p
+    p = 1.0 / 7.0 + z2 * p
+    p = 0.2 + z2 * p
+    p = 1.0 / 3.0 + z2 * p
+    p = 1.0 + z2 * p
+    return 2.0 * z * p
+
+
+#: The tail words `_tail_words` leaves out (``P_c - lbest`` above the skip, `_skip_cost`) add
+#: less than this together: the error probability is exact to it.
+TAIL_ACCURACY = 1e-8
+
+
+def _skip_cost(words: float) -> float:
+    """`_tail_words`' skip: the -2 log odds beyond which a word is left out, so that `words`
+    (the number of words the sample stands for) of them add less than `TAIL_ACCURACY`."""
+    return 2.0 * float(np.log(max(words, 1.0) / TAIL_ACCURACY))
+
+
+_COLUMNS: dict[int, np.ndarray] = {}
+
+
+def _flip_columns(code: Code) -> np.ndarray:
+    """`_flips`' sampled words as a dense (n, L) float64 0/1 matrix for `_tail_words`: column j
+    word j's flipped bits.  Cached per code object; (1, 0) for a code without a tail."""
+    key = id(code)
+    hit = _COLUMNS.get(key)
+    if hit is None:
+        _, flips, _, _, _, _, _ = _flips(code)
+        if flips.size == 0:
+            hit = np.zeros((1, 0), np.float64)
+        else:
+            bits = (flips[None, :] >> np.arange(code.n, dtype=np.uint64)[:, None]) & np.uint64(1)
+            hit = np.ascontiguousarray(bits.astype(np.float64))
+        _COLUMNS[key] = hit
+    return hit
 
 
 _XTAB: dict[tuple[int, bool], np.ndarray] = {}
@@ -1004,16 +1169,16 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     gain = np.empty((h, w), np.float64)
     conf = np.empty((h, w), np.float32)
     contrast = np.empty((h, w), np.float32)
-    packed, flips, flip_bits, flip_w, tail_weight, wlo, whi = _flips(code)
+    packed, flips, _, _, tail_weight, wlo, whi = _flips(code)
     has_inv = inverse is not None
     xtab = _xtab(code, has_inv)
     searched = (np.zeros(cand.shape, np.float32) if distances is None
                 else np.ascontiguousarray(distances, np.float32))
-    _posterior(_samples(frames, inverse), white, black, np.float64(scale),
-               xtab, code.n, cand, searched,
-               float(noise.a), float(noise.beta), packed, flips, flip_bits, flip_w, float(tail_weight), int(wlo), int(whi),
-               min(1.0, choices / code.size), bool(np.isin(xtab, (0.0, 1.0)).all()), max(1, get_num_threads()),
-               *kernel_args(noise.levels), out_cand, out_dist, competitors, gain, conf, contrast)
+    _posterior(_samples(frames, inverse), white, black, np.float64(scale), xtab, code.n, cand, searched,
+               float(noise.a), float(noise.beta), packed, flips, _flip_columns(code), float(tail_weight), int(wlo),
+               int(whi), min(1.0, choices / code.size), bool(np.isin(xtab, (0.0, 1.0)).all()), max(1, get_num_threads()),
+               *kernel_args(noise.levels), contrast_edges(noise.levels), _skip_cost(flips.size * tail_weight),
+               out_cand, out_dist, competitors, gain, conf, contrast)
     fdr, idx = _not_lit_lookup(gain, code, choices, has_inv)
     err = np.empty((h, w), np.float32)
     _combine(idx, competitors, fdr, err)

@@ -318,7 +318,7 @@ def _tail_mass(buf, xs, rk, lbest, count, ns, nbits, xtab, a, beta, packed, flip
         sorted_d[i] = delta[i]
     sort_small(sorted_d, nbits)
     lowest = 0.0
-    for i in range(flip_w[0]):
+    for i in range(wlo):
         lowest += sorted_d[i]
     bound = mul64(TAIL_REFIT_SHARE, lowest)
     if use_prior:
