@@ -175,14 +175,15 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     prior = level_prior(off, rng.uniform(0.0, 0.6, 4000))
     beta = 1e-3
     ptab, pu0, pdu, pw0, pdw, pout, use, least = kernel_args(prior)
-    packed, flips, _, _, weight, wlo, whi = P._flips(code)
+    tail = P._flips(code)
+    packed, flips, weight, wlo, whi = tail.packed, tail.flips, tail.weight, tail.wlo, tail.whi
     scale = 1.0 / 255.0
     samples = P._samples(cap.frames, cap.inverse)
     xtab = P._xtab(code, inverse)
     ref = [np.empty((h, w, 3), np.int32), np.empty((h, w, 3), np.float32), np.empty((h, w)), np.empty((h, w)),
            np.empty((h, w), np.float32), np.empty((h, w), np.float32)]
     P._posterior(samples, white, black, scale, xtab, code.n, cand, searched, a, beta, packed, flips,
-                 P._flip_columns(code), float(weight), int(wlo), int(whi), 1.0, True, 1, ptab, pu0, pdu, pw0, pdw, pout,
+                 tail.columns, float(weight), int(wlo), int(whi), 1.0, True, 1, ptab, pu0, pdu, pw0, pdw, pout,
                  use, least, contrast_edges(prior), P._skip_cost(flips.size * weight), *ref)
     tb = posterior_tables(code, inverse)
     out = [cuda.device_array((h, w, 3), np.int32), cuda.device_array((h, w, 3), np.float32),

@@ -385,9 +385,9 @@ def test_tail_words_match_the_exact_sum_over_words(with_prior, reference):
     from edge.decode.level_prior import contrast_edges, kernel_args
 
     code = ECC
-    columns = P._flip_columns(code)
+    tail = P._flips(code)
+    columns, weight = tail.columns, tail.weight
     words = columns.shape[1]
-    packed, flips, _, _, weight, _, _ = P._flips(code)
     rng = np.random.default_rng(11)
     prior = level_prior(rng.normal(0.1, 0.03, 4000), np.abs(rng.normal(0.25, 0.08, 4000))) if with_prior else None
     ptab, pu0, pdu, pw0, pdw, pout, use, _ = kernel_args(prior)

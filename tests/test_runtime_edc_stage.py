@@ -55,3 +55,34 @@ def test_edc_confidence_belongs_to_the_published_column():
     assert (conf[guessed_other] == GUESS_CONFIDENCE).all()
     assert (published.confidence[guessed_other] == 1).all()
     assert (published.confidence[~valid] == 0).all()
+
+
+def _overloads() -> dict:
+    """Every live numba CPU dispatcher's compiled signatures (compiled or loaded from the cache)."""
+    import gc
+
+    from numba.core.registry import CPUDispatcher
+
+    return {id(d): (d.py_func.__qualname__, frozenset(d.overloads)) for d in gc.get_objects()
+            if isinstance(d, CPUDispatcher)}
+
+
+def test_warm_up_leaves_nothing_to_compile_for_the_first_stack():
+    """`DepthPipeline.warm_up` covers every kernel a real stack with EDC rounds needs: the first
+    stack adds no signature to any numba dispatcher (none compiled, none loaded from the cache),
+    so an empty cache stalls start-up, not the first stacks."""
+    profile = load_test_profile(edc={"rounds": 1}, sim={"scene": "v-groove"})
+    pipe = DepthPipeline(profile)
+    sensor = SimSensor(profile, stacks=1, max_speed=True)
+    sensor.start()
+    try:
+        stack = _one_stack(sensor, pipe.schedule)
+        pipe.warm_up()
+        before = _overloads()
+        result = pipe.process(stack, sensor.capture_masked)
+        after = _overloads()
+    finally:
+        sensor.stop()
+    assert result.edc_rounds >= 1
+    new = sorted(name for key, (name, sigs) in after.items() if sigs != before.get(key, (name, frozenset()))[1])
+    assert not new, f"compiled or loaded by the first stack, not by warm_up: {new}"

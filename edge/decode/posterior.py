@@ -137,6 +137,20 @@ class Posterior(NamedTuple):
     noise: Noise
 
 
+class TailTables(NamedTuple):
+    """The tail mass's tables of a binary linear code (`_flips`; L sampled words, L = 0 for a code
+    without a tail term)."""
+
+    packed: np.ndarray  #: (size,) uint64 every codeword, bit i = symbol i
+    flips: np.ndarray  #: (L,) uint64 the sampled words, packed
+    flip_bits: np.ndarray  #: (L, w_max) int32 their bit positions (zero-padded)
+    flip_w: np.ndarray  #: (L,) int32 their weights
+    columns: np.ndarray  #: (n, L) float64 0/1, column j the bits word j flips (`_tail_words`)
+    weight: float  #: the words they stand for (weight wlo..whi) / L
+    wlo: int  #: the least weight sampled (d_min)
+    whi: int  #: the largest weight sampled
+
+
 @njit(cache=True, inline="always")
 def _clipped(buf, m):
     """Whether any of the m normalised samples sits at 0 or at full scale (1): its residual is
@@ -787,16 +801,16 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
                 out_contrast[yy, xx] = ck[0]
 
 
-@njit(cache=True)
-def _word_cost(m, n1, tot, s1, sq, q1, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use_prior):
-    """-2 log posterior (up to the constant of `_posterior`'s ``lk``) of a binary codeword from
-    its sample sums: n1 samples of symbol 1 (white included) of m, ``tot`` / ``sq`` the sum of
-    all samples / their squares, ``s1`` / ``q1`` those of the symbol-1 samples.  The levels are
-    `_fit`'s least-squares (b, c >= 0) and L is `_nll`'s, in closed form; plus the level prior."""
+@njit(cache=True, inline="always")
+def _refit(m, n1, tot, s1, sq, q1, a, beta):
+    """A binary codeword's least-squares levels and residuals from its sample sums (see
+    `_word_cost`): (b, c, n0, v0, v1, ss0, ss1), b the off level, c >= 0 the contrast, n0 = m -
+    n1 the symbol-0 samples, v0 / v1 the variances of the two levels, ss0 / ss1 the sums of
+    squared residuals about them (may round below 0).  Branch-free, so that loops over words
+    vectorise."""
     den = m * n1 - n1 * n1
     c = (m * s1 - n1 * tot) / den if den > 0 else 0.0
-    if c < 0.0:
-        c = 0.0
+    c = c if c > 0.0 else 0.0
     b = (tot - c * n1) / m
     m1 = b + c
     n0 = m - n1
@@ -804,6 +818,17 @@ def _word_cost(m, n1, tot, s1, sq, q1, a, beta, ptab, pu0, pdu, pw0, pdw, pout, 
     v1 = a + beta * (m1 if m1 > 0.0 else 0.0)
     ss0 = (sq - q1) - 2.0 * b * (tot - s1) + n0 * b * b
     ss1 = q1 - 2.0 * m1 * s1 + n1 * m1 * m1
+    return b, c, n0, v0, v1, ss0, ss1
+
+
+@njit(cache=True)
+def _word_cost(m, n1, tot, s1, sq, q1, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use_prior):
+    """-2 log posterior (up to the constant of `_posterior`'s ``lk``) of a binary codeword from
+    its sample sums: n1 samples of symbol 1 (white included) of m, ``tot`` / ``sq`` the sum of
+    all samples / their squares, ``s1`` / ``q1`` those of the symbol-1 samples.  The levels are
+    `_fit`'s least-squares (b, c >= 0, `_refit`) and L is `_nll`'s, in closed form; plus the level
+    prior."""
+    b, c, n0, v0, v1, ss0, ss1 = _refit(m, n1, tot, s1, sq, q1, a, beta)
     cost = (ss0 if ss0 > 0.0 else 0.0) / v0 + n0 * np.log(v0) + (ss1 if ss1 > 0.0 else 0.0) / v1 + n1 * np.log(v1)
     if use_prior:
         cost += cost_at(ptab, pu0, pdu, pw0, pdw, pout, b, c)
@@ -827,7 +852,7 @@ def _tail_mass(buf, xs, rk, lbest, count, n, nbits, xtab, a, beta, packed, flips
     lowers a word's cost, without noise by the share d / m of its d flipped samples of m, at most
     1 / 2 (`TAIL_REFIT_SHARE`), and the prior lowers it by at most ``pmin - P(c1's levels)`` (pmin
     the table's least cost).  Where that bound times the number of words is below `TAIL_FLOOR`,
-    no word is evaluated.  Else the sampled words are `_tail_words`' (columns: `_flip_columns`;
+    no word is evaluated.  Else the sampled words are `_tail_words`' (columns: `TailTables.columns`;
     skip: `_skip_cost`); prior: the kernel form of the level prior with its cell edges, (table,
     u0, du, w0, dw, outside, use, least, edges); work: (8, L) float64 scratch."""
     ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin, edges = prior
@@ -921,12 +946,12 @@ def _tail_words(m, columns, dn, ds, dq, n1, s1, q1, tot, sq, a, beta, vr0, vr1, 
     lbest) / 2) over the words whose ``P_c - lbest <= skip`` (each of the rest adds less than
     exp(-skip / 2)).
 
-    columns (nbits, L) float64 0/1: column j the bits word j flips (`_flip_columns`); dn / ds /
+    columns (nbits, L) float64 0/1: column j the bits word j flips (`TailTables.columns`); dn / ds /
     dq (>= nbits,): `_tail_mass`'s per-bit changes; n1 / s1 / q1, tot / sq: c1's sums as
     `_word_cost` takes them; vr0 / vr1: the variances of c1's levels, g0 / g1 their logs; edges
     (GRID + 1,): the prior's u-cell edges as contrasts (`level_prior.contrast_edges`).
 
-    Each word's P_c is `_word_cost`'s, with the same operations, except for two things:
+    Each word's P_c is `_word_cost`'s, with the same operations (`_refit`), except for two things:
     * the logs ``ln(v / vr)`` of its two variances are the series ``2 (z + z**3 / 3 + ... +
       z**19 / 19)`` of ``2 atanh z``, ``z = (v - vr) / (v + vr)``, whose truncation error is
       below 2e-11 where ``|z| <= 1/3`` (the words refit variances near c1's); elsewhere the word
@@ -961,22 +986,9 @@ def _tail_words(m, columns, dn, ds, dq, n1, s1, q1, tot, sq, a, beta, vr0, vr1, 
             ws[j] += f * es
             wq[j] += f * eq
     third = 1.0 / 3.0
-    cmin = np.inf
-    cmax = 0.0
     for j in range(words):
         tn = wn[j]
-        t1 = ws[j]
-        tq = wq[j]
-        den = m * tn - tn * tn
-        c = (m * t1 - tn * tot) / den if den > 0 else 0.0
-        c = c if c > 0.0 else 0.0
-        b = (tot - c * tn) / m
-        m1 = b + c
-        n0 = m - tn
-        v0 = a + beta * (b if b > 0.0 else 0.0)
-        v1 = a + beta * (m1 if m1 > 0.0 else 0.0)
-        ss0 = (sq - tq) - 2.0 * b * (tot - t1) + n0 * b * b
-        ss1 = tq - 2.0 * m1 * t1 + tn * m1 * m1
+        b, c, n0, v0, v1, ss0, ss1 = _refit(m, tn, tot, ws[j], sq, wq[j], a, beta)
         z0 = (v0 - vr0) / (v0 + vr0)
         z1 = (v1 - vr1) / (v1 + vr1)
         bp = b if b > 0.0 else 0.0
@@ -990,6 +1002,8 @@ def _tail_words(m, columns, dn, ds, dq, n1, s1, q1, tot, sq, a, beta, vr0, vr1, 
     cols = ptab.shape[1]
     table = ptab.ravel()
     if use_prior:
+        cmin = np.inf
+        cmax = 0.0
         for j in range(words):  # (apart from the pass above: a float min / max keeps it from vectorising)
             cmin = min(cmin, cw[j])
             cmax = max(cmax, cw[j])
@@ -1060,27 +1074,8 @@ def _skip_cost(words: float) -> float:
     return 2.0 * float(np.log(max(words, 1.0) / TAIL_ACCURACY))
 
 
-_COLUMNS: dict[int, np.ndarray] = {}
-
-
-def _flip_columns(code: Code) -> np.ndarray:
-    """`_flips`' sampled words as a dense (n, L) float64 0/1 matrix for `_tail_words`: column j
-    word j's flipped bits.  Cached per code object; (1, 0) for a code without a tail."""
-    key = id(code)
-    hit = _COLUMNS.get(key)
-    if hit is None:
-        _, flips, _, _, _, _, _ = _flips(code)
-        if flips.size == 0:
-            hit = np.zeros((1, 0), np.float64)
-        else:
-            bits = (flips[None, :] >> np.arange(code.n, dtype=np.uint64)[:, None]) & np.uint64(1)
-            hit = np.ascontiguousarray(bits.astype(np.float64))
-        _COLUMNS[key] = hit
-    return hit
-
-
 _XTAB: dict[tuple[int, bool], np.ndarray] = {}
-_FLIPS: dict[int, tuple] = {}
+_FLIPS: dict[int, TailTables] = {}
 #: Codeword weights d_min .. d_min + TAIL_WEIGHTS enter the tail mass (`_flips`).
 TAIL_WEIGHTS = 2
 #: The tail mass sums an evenly spaced sample of at most this many of the low-weight codewords.
@@ -1115,18 +1110,16 @@ def _samples(frames: np.ndarray, inverse: np.ndarray | None) -> np.ndarray:
     return np.ascontiguousarray(frames) if inverse is None else np.concatenate([frames, inverse], axis=0)
 
 
-def _flips(code: Code) -> tuple:
-    """Tables of the tail mass (`_tail_mass`) of a binary linear code with n <= 64: packed (size,)
-    uint64 codewords (bit i = symbol i), flips (L,) uint64 an evenly spaced sample (at most
-    TAIL_WORDS) of its nonzero codewords of weight wlo = d_min .. whi = d_min + TAIL_WEIGHTS,
-    flip_bits (L, w_max) int32 their bit positions, flip_w (L,) int32 their weights, weight = (all
-    such codewords) / L, wlo, whi.  Other codes: L = 0 (no tail term)."""
+def _flips(code: Code) -> TailTables:
+    """The tail mass's tables (`TailTables`) of a binary linear code with n <= 64: its sampled
+    words are an evenly spaced sample (at most TAIL_WORDS) of its nonzero codewords of weight
+    wlo = d_min .. whi = d_min + TAIL_WEIGHTS.  Other codes: L = 0 (no tail term).  Cached per
+    code object."""
     key = id(code)
     hit = _FLIPS.get(key)
     if hit is None:
-        empty = (np.zeros(1, np.uint64), np.zeros(0, np.uint64), np.zeros((0, 1), np.int32), np.zeros(1, np.int32),
-                 1.0, 0, 0)
-        hit = empty
+        hit = TailTables(np.zeros(1, np.uint64), np.zeros(0, np.uint64), np.zeros((0, 1), np.int32),
+                         np.zeros(1, np.int32), np.zeros((1, 0), np.float64), 1.0, 0, 0)
         if code.q == 2 and code.is_linear and code.n <= 64:
             cb = np.asarray(code.codebook, np.uint64)
             packed = (cb << np.arange(code.n, dtype=np.uint64)).sum(axis=1, dtype=np.uint64)
@@ -1141,8 +1134,9 @@ def _flips(code: Code) -> tuple:
                 for j, r in enumerate(pick):
                     pos = np.nonzero(code.codebook[r])[0]
                     bits[j, :pos.size] = pos
-                hit = (packed, packed[pick].copy(), bits, weights[pick].astype(np.int32), every.size / pick.size,
-                       dmin, dmin + TAIL_WEIGHTS)
+                columns = np.ascontiguousarray(np.asarray(code.codebook, np.float64)[pick].T)
+                hit = TailTables(packed, packed[pick].copy(), bits, weights[pick].astype(np.int32), columns,
+                                 every.size / pick.size, dmin, dmin + TAIL_WEIGHTS)
         _FLIPS[key] = hit
     return hit
 
@@ -1169,15 +1163,15 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     gain = np.empty((h, w), np.float64)
     conf = np.empty((h, w), np.float32)
     contrast = np.empty((h, w), np.float32)
-    packed, flips, _, _, tail_weight, wlo, whi = _flips(code)
+    tail = _flips(code)
     has_inv = inverse is not None
     xtab = _xtab(code, has_inv)
     searched = (np.zeros(cand.shape, np.float32) if distances is None
                 else np.ascontiguousarray(distances, np.float32))
     _posterior(_samples(frames, inverse), white, black, np.float64(scale), xtab, code.n, cand, searched,
-               float(noise.a), float(noise.beta), packed, flips, _flip_columns(code), float(tail_weight), int(wlo),
-               int(whi), min(1.0, choices / code.size), bool(np.isin(xtab, (0.0, 1.0)).all()), max(1, get_num_threads()),
-               *kernel_args(noise.levels), contrast_edges(noise.levels), _skip_cost(flips.size * tail_weight),
+               float(noise.a), float(noise.beta), tail.packed, tail.flips, tail.columns, float(tail.weight),
+               int(tail.wlo), int(tail.whi), min(1.0, choices / code.size), bool(np.isin(xtab, (0.0, 1.0)).all()), max(1, get_num_threads()),
+               *kernel_args(noise.levels), contrast_edges(noise.levels), _skip_cost(tail.flips.size * tail.weight),
                out_cand, out_dist, competitors, gain, conf, contrast)
     fdr, idx = _not_lit_lookup(gain, code, choices, has_inv)
     err = np.empty((h, w), np.float32)

@@ -186,9 +186,10 @@ class DepthPipeline:
 
         Decodes a small synthetic stack (8 rows x 64 columns, the camera's dtype, the profile's
         method and disparity band) so that the first real stack is not delayed by compilation
-        (about a minute with an empty cache on a 2-core machine, well under a second from the cache), and runs the
-        EDC check on it (the sparse kernels of `edge.edc`, so ``edc.rounds`` can be switched on
-        without a compile pause).  Returns the seconds spent.
+        (about a minute with an empty cache on a 2-core machine, well under a second from the cache), and runs
+        two EDC rounds on it (the check of the stack and a re-decode of its failing pixels: the
+        sparse kernels of `edge.edc`, so ``edc.rounds`` can be switched on without a compile
+        pause).  Returns the seconds spent.
         """
         t0 = time.perf_counter()
         dtype = np.uint8 if self.profile.camera.bits == 8 else np.uint16
@@ -204,12 +205,19 @@ class DepthPipeline:
         black = np.full((h, w), 0.1 * full)
         decoded = self.decode(codes.astype(dtype), white.astype(dtype), black.astype(dtype))
         if self.code.q == 2 and self.code.n <= 22:  # the EDC stage's kernels (edc.rounds may be switched on live)
-            from .edc_stage import run_adaptive
+            from .edc_stage import make_scan
 
             images = np.concatenate([codes, white[None], black[None]]).astype(dtype)
-            images[0, 0, :8] = images[self.n, 0, :8] - images[0, 0, :8] + images[self.n + 1, 0, :8]  # failing words
-            run_adaptive(self, None, images, np.asarray(decoded.column, dtype=np.int32),
-                         np.asarray(decoded.confidence, dtype=np.float32), None)
+            checked = images.copy()
+            checked[0, 0, :8] = images[self.n, 0, :8] - images[0, 0, :8] + images[self.n + 1, 0, :8]  # failing words
+            # round 1 checks the stack; round 2 re-decodes the failing pixels, half of them fixed (its
+            # own kernels: gather, pack at pixels, the nearest codewords of what fails again, the
+            # neighbour support of what passes)
+            again = checked.copy()
+            again[:, 0, 4:8] = images[:, 0, 4:8]
+            scan = make_scan(self, h, rounds=2)
+            scan.run(lambda frames: checked if frames.shape[0] == checked.shape[0] else again[: frames.shape[0]],
+                     guess=np.asarray(decoded.column, dtype=np.int32))
         return time.perf_counter() - t0
 
     def validity(self, decoded) -> np.ndarray:

@@ -121,10 +121,11 @@ def posterior_tables(code: Code, inverse: bool) -> dict:
     key = (code.name, code.n, code.q, code.size, bool(inverse))
     t = _POST_TABLES.get(key)
     if t is None:
-        packed, flips, flip_bits, flip_w, weight, wlo, whi = _flips(code)
-        t = {"xtab": cuda.to_device(_xtab(code, inverse)), "packed": cuda.to_device(packed),
-             "flips": cuda.to_device(flips), "flip_bits": cuda.to_device(np.ascontiguousarray(flip_bits)),
-             "flip_w": cuda.to_device(flip_w), "weight": float(weight), "wlo": int(wlo), "whi": int(whi)}
+        tail = _flips(code)
+        t = {"xtab": cuda.to_device(_xtab(code, inverse)), "packed": cuda.to_device(tail.packed),
+             "flips": cuda.to_device(tail.flips), "flip_bits": cuda.to_device(np.ascontiguousarray(tail.flip_bits)),
+             "flip_w": cuda.to_device(tail.flip_w), "weight": float(tail.weight), "wlo": int(tail.wlo),
+             "whi": int(tail.whi)}
         _POST_TABLES[key] = t
     return t
 
