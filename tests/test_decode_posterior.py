@@ -163,9 +163,13 @@ def test_posterior_matches_brute_force(sigma, with_prior):
                                                                              for k in ks)
     dark = not_lit_probability(gains, code, code.size)
     ref = 1 - (1 - dark) * (1 - comp)
-    np.testing.assert_allclose(out.error, ref, rtol=2e-3, atol=1e-6)
+    exact = comp < 0.5  # from P(confused) = 1/2 up the tail's sum may stop: a lower bound, at least 1/2
+    np.testing.assert_allclose(out.error[exact], ref[exact], rtol=2e-3, atol=1e-6)
+    half = 1 - (1 - dark[~exact]) * 0.5
+    assert np.all(out.error[~exact] >= half - 1e-6) and np.all(out.error[~exact] <= ref[~exact] * (1 + 2e-3) + 1e-6)
     if sigma > 0.1:  # the terms this test is about matter at low SNR
         assert dark.max() > 0.5 and comp.max() > 0.05
+        assert 0.05 < comp[exact].max() < 0.5  # the exact range holds tail-mass pixels too
 
 
 def test_not_lit_probability_follows_the_share_of_unlit_pixels():
@@ -396,6 +400,7 @@ def test_tail_words_match_the_exact_sum_over_words(with_prior, reference):
     skip = P._skip_cost(words * weight)
     work = np.empty((8, words))
     exact_path = 0
+    stopped = 0
     for trial in range(40):
         best = rng.integers(0, code.size)
         x = np.r_[code.codebook[best], 1, 0].astype(np.float64)
@@ -410,14 +415,25 @@ def test_tail_words_match_the_exact_sum_over_words(with_prior, reference):
         vr0, vr1 = (a + beta * max(b1, 0.0)) * reference, (a + beta * max(b1 + c1, 0.0)) * reference
         lbest = P._word_cost(m, n1, tot, s1, sq, q1, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use)
         got = P._tail_words(m, columns, dn, ds, dq, n1, s1, q1, tot, sq, a, beta, vr0, vr1, np.log(vr0), np.log(vr1),
-                            ptab, pu0, pdu, pw0, pdw, pout, use, edges, lbest, skip, work)
+                            ptab, pu0, pdu, pw0, pdw, pout, use, edges, lbest, skip, np.inf, work)
         exact_path += int(work[6].sum())
-        want = 0.0
+        terms = np.zeros(words)
         for j in range(words):
             bits = columns[:, j]
             d = P._word_cost(m, n1 + bits @ dn, tot, s1 + bits @ ds, sq, q1 + bits @ dq, a, beta, ptab, pu0, pdu,
                              pw0, pdw, pout, use) - lbest
-            want += np.exp(-0.5 * max(d, -700.0))
+            terms[j] = np.exp(-0.5 * max(d, -700.0))
+        want = terms.sum()
         assert abs(got - want) <= words * np.exp(-skip / 2) + 1e-9 * want, (trial, got, want)
+        if got > 0:  # stopped after the first block whose running sum reaches `enough`: that sum
+            part = P._tail_words(m, columns, dn, ds, dq, n1, s1, q1, tot, sq, a, beta, vr0, vr1, np.log(vr0),
+                                 np.log(vr1), ptab, pu0, pdu, pw0, pdw, pout, use, edges, lbest, skip, got / 3, work)
+            running = np.cumsum(np.add.reduceat(terms, np.arange(0, words, P.TAIL_BLOCK)))
+            k = int(np.argmax(running >= got / 3 * (1 - 1e-9)))
+            assert abs(part - running[k]) <= words * np.exp(-skip / 2) + 1e-9 * want, (trial, part, running[k])
+            assert got / 3 <= part <= got
+            stopped += k < running.size - 1
     if reference > 1.0:
         assert exact_path > 0.5 * 40 * words  # the exact path was taken, and agrees
+    if with_prior:
+        assert stopped > 0  # some sums stopped before the last block

@@ -43,7 +43,10 @@ Three pure steps over numpy arrays (numba kernels, one pass over the pixels each
      codewords ``c1 xor h`` with h of weight d_min .. d_min + `TAIL_WEIGHTS` are added
      (`_tail_mass`: each word with its own refitted levels, in closed form from per-bit sums, and
      the prior), scaled by the share of the codebook a disparity band allows; not where the
-     search found fewer than three or the third is already negligible.  Without the prior a
+     search found fewer than three or the third is already negligible, and not where the top
+     three already give P(confused) >= 1/2; the sum over the tail's words stops once it takes
+     P(confused) to 1/2 (from 1/2 up the published value may be a lower bound: such a pixel is
+     invalid under any target).  Without the prior a
      far competitor's flat-prior odds overstate it where the scene has no pixels at its levels;
      without the refit the tail words, scored under c1's levels, lose about 3/4 of their mass.
    * ``P(not lit)`` (shadow, outside the projector): a local false-discovery rate on the gain
@@ -61,7 +64,7 @@ consecutive pixels of a row at a time with branch-free loops over the lanes; eac
 still run over its samples in the order above with the same operations, so every value is the
 one-pixel-at-a-time value bit for bit.  A binary code's levels take two values, so the tail's
 flip costs take two logs per pixel.  The tail's words (`_tail_words`) are scored in branch-free
-passes over all of a pixel's words at once (vectorised), with each word's two log-variances by a
+passes over blocks of `TAIL_BLOCK` of a pixel's words at once (vectorised), with each word's two log-variances by a
 series about c1's (to 2e-11) and its prior cell by counting cell edges, and words whose odds are
 below exp(-skip / 2) are left out of the sum (together less than `TAIL_ACCURACY`; the CUDA backend
 sums every word exactly, and the two agree to that).  P(not lit) and P(wrong) are one binning
@@ -121,7 +124,8 @@ class Posterior(NamedTuple):
     candidates: (H, W, 3) int32 rows re-ordered by likelihood (-1 where absent);
     distances: (H, W, 3) float32 ``P_k``: negative log-likelihoods ``L_k`` plus the level prior's
         ``-2 log p(b_k, c_k)`` (the -2 log-posterior up to a constant; inf where absent);
-    error: float32 P(wrong) of candidates[..., 0] (1 where no candidate);
+    error: float32 P(wrong) of candidates[..., 0] (1 where no candidate; from 1/2 up it may be a lower
+        bound, `TAIL_FLOOR`);
     confidence: float32 ``(d2 - d1) / d2`` of the Mahalanobis parts ``d_k = sum (r - mu)**2 / v``
         (the paper's ratio on the refitted candidates; its lower bound ``SKIP_MARGIN / (d1 +
         SKIP_MARGIN)`` where the second was not rescored; 0 where there is no second);
@@ -786,9 +790,12 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
                 if use_tail and count == 3 and flips.size * tail_weight * ek > TAIL_FLOOR and far < 1.0 + every - far:
                     for i in range(m):
                         buf[i] = R[i, l]
+                    # P(wrong) = (far + tail) / (1 + every + tail) >= 1/2 once tail >= 1 + every - 2 far: the
+                    # sum may stop there (invalid under any target; the published value a lower bound)
+                    enough = (1.0 + every - 2.0 * far) / in_band
                     tail = in_band * _tail_mass(buf, xs, rk, lk[0], count, n, nbits, xtab, a, beta, packed, flips,
-                                                columns, tail_weight, wlo, whi, prior, skip, dn, ds, dq, delta,
-                                                sorted_d, work)
+                                                columns, tail_weight, wlo, whi, prior, skip, enough, dn, ds, dq,
+                                                delta, sorted_d, work)
                     far += tail
                     every += tail
                 out_err[yy, xx] = far / (1.0 + every)
@@ -837,7 +844,7 @@ def _word_cost(m, n1, tot, s1, sq, q1, a, beta, ptab, pu0, pdu, pw0, pdw, pout, 
 
 @njit(cache=True, inline="always")
 def _tail_mass(buf, xs, rk, lbest, count, n, nbits, xtab, a, beta, packed, flips, columns, weight, wlo, whi, prior,
-               skip, dn, ds, dq, delta, sorted_d, work):
+               skip, enough, dn, ds, dq, delta, sorted_d, work):
     """Sum of exp(-(P_c - lbest) / 2) over the codewords c = c1 xor h, h a codeword of weight
     wlo..whi of a binary linear code, other than the candidates already scored, where ``P_c``
     is c's -2 log-likelihood with its own refitted levels plus the level prior (`_word_cost`),
@@ -853,8 +860,9 @@ def _tail_mass(buf, xs, rk, lbest, count, n, nbits, xtab, a, beta, packed, flips
     1 / 2 (`TAIL_REFIT_SHARE`), and the prior lowers it by at most ``pmin - P(c1's levels)`` (pmin
     the table's least cost).  Where that bound times the number of words is below `TAIL_FLOOR`,
     no word is evaluated.  Else the sampled words are `_tail_words`' (columns: `TailTables.columns`;
-    skip: `_skip_cost`); prior: the kernel form of the level prior with its cell edges, (table,
-    u0, du, w0, dw, outside, use, least, edges); work: (8, L) float64 scratch."""
+    skip: `_skip_cost`), stopped once the sum is at least ``enough`` (then a lower bound; inf:
+    never); prior: the kernel form of the level prior with its cell edges, (table, u0, du, w0,
+    dw, outside, use, least, edges); work: (8, L) float64 scratch."""
     ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin, edges = prior
     m = n + 2
     b, c = _fit(buf, xs, rk[0], n, xtab)  # xs: c1's symbols of the m samples
@@ -916,11 +924,10 @@ def _tail_mass(buf, xs, rk, lbest, count, n, nbits, xtab, a, beta, packed, flips
                 ds[i] += r
                 dq[i] += r * r
             j += nbits
+    # the scored candidates are not tail: what they add to the (estimated) sum is taken out
     own = packed[rk[0]]
-    total = _tail_words(m, columns, dn, ds, dq, n1, s1, q1, tot, sq, a, beta, v0, v1, g0, g1, ptab, pu0, pdu, pw0,
-                        pdw, pout, use_prior, edges, lbest, skip, work)
-    total *= weight
-    # the scored candidates are not tail: take out what they add to the (estimated) sum
+    own1 = 0.0  # the second and third candidates' terms
+    own2 = 0.0
     for k in range(1, count):
         word = own ^ packed[rk[k]]
         bits = 0
@@ -935,16 +942,24 @@ def _tail_mass(buf, xs, rk, lbest, count, n, nbits, xtab, a, beta, packed, flips
                 wq += dq[i]
         if wlo <= bits <= whi:
             d = _word_cost(m, wn, tot, ws, sq, wq, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use_prior) - lbest
-            total -= np.exp(-0.5 * min(max(d, -_CLIP), _CLIP))
+            e = np.exp(-0.5 * min(max(d, -_CLIP), _CLIP))
+            if k == 1:
+                own1 = e
+            else:
+                own2 = e
+    total = _tail_words(m, columns, dn, ds, dq, n1, s1, q1, tot, sq, a, beta, v0, v1, g0, g1, ptab, pu0, pdu, pw0,
+                        pdw, pout, use_prior, edges, lbest, skip, (enough + own1 + own2) / weight, work)
+    total = total * weight - own1 - own2
     return total if total > 0.0 else 0.0
 
 
 @njit(cache=True, error_model="numpy")
 def _tail_words(m, columns, dn, ds, dq, n1, s1, q1, tot, sq, a, beta, vr0, vr1, g0, g1, ptab, pu0, pdu, pw0, pdw, pout,
-                use_prior, edges, lbest, skip, work):
+                use_prior, edges, lbest, skip, enough, work):
     """`_tail_mass`'s sum over the sampled words, before the weight: the sum of exp(-(P_c -
     lbest) / 2) over the words whose ``P_c - lbest <= skip`` (each of the rest adds less than
-    exp(-skip / 2)).
+    exp(-skip / 2)), taken over blocks of `TAIL_BLOCK` words in order and stopped after the
+    first block at whose end the sum is >= ``enough`` (then a lower bound; inf: every word).
 
     columns (nbits, L) float64 0/1: column j the bits word j flips (`TailTables.columns`); dn / ds /
     dq (>= nbits,): `_tail_mass`'s per-bit changes; n1 / s1 / q1, tot / sq: c1's sums as
@@ -958,10 +973,11 @@ def _tail_words(m, columns, dn, ds, dq, n1, s1, q1, tot, sq, a, beta, vr0, vr1, 
       is `_word_cost` exactly;
     * its u-cell is the count of edges at or below its contrast, less one: the cell of
       ``log10 c``, up to rounding at the edges.
-    The words are scored in branch-free passes over all of them at once (vectorised), then one
-    pass adds the prior cells and one sums the exponentials of the words within the skip.
-    work: (8, L) float64 scratch (per word: symbol-1 count, sum, sum of squares, cost, contrast,
-    w-cell, exact-path flag, u-cell + 1)."""
+    A block's words are scored in branch-free passes over all of them at once (vectorised), then
+    one pass adds the prior cells and one sums the exponentials of the words within the skip;
+    the sum runs over the words in order, whatever the blocks, so a sum that is not stopped does
+    not depend on them.  work: (8, L) float64 scratch (per word: symbol-1 count, sum, sum of
+    squares, cost, contrast, w-cell, exact-path flag, u-cell + 1)."""
     wn = work[0]
     ws = work[1]
     wq = work[2]
@@ -971,78 +987,93 @@ def _tail_words(m, columns, dn, ds, dq, n1, s1, q1, tot, sq, a, beta, vr0, vr1, 
     exact = work[6]
     fu = work[7]
     words = columns.shape[1]
-    for j in range(words):
-        wn[j] = n1
-        ws[j] = s1
-        wq[j] = q1
-    for i in range(columns.shape[0]):  # bit by bit in ascending order, as the scalar sums (x + 0 * d is x)
-        en = dn[i]
-        es = ds[i]
-        eq = dq[i]
-        row = columns[i]
-        for j in range(words):
-            f = row[j]
-            wn[j] += f * en
-            ws[j] += f * es
-            wq[j] += f * eq
     third = 1.0 / 3.0
-    for j in range(words):
-        tn = wn[j]
-        b, c, n0, v0, v1, ss0, ss1 = _refit(m, tn, tot, ws[j], sq, wq[j], a, beta)
-        z0 = (v0 - vr0) / (v0 + vr0)
-        z1 = (v1 - vr1) / (v1 + vr1)
-        bp = b if b > 0.0 else 0.0
-        cp = c if c > C_FLOOR else C_FLOOR
-        cost[j] = ((ss0 if ss0 > 0.0 else 0.0) / v0 + n0 * (g0 + _atanh2(z0))
-                   + (ss1 if ss1 > 0.0 else 0.0) / v1 + tn * (g1 + _atanh2(z1)))
-        exact[j] = 0.0 if abs(z0) <= third and abs(z1) <= third else 1.0
-        cw[j] = cp
-        fw[j] = np.floor((bp / (bp + cp) - pw0) / pdw)
     rows = ptab.shape[0]
     cols = ptab.shape[1]
     table = ptab.ravel()
-    if use_prior:
-        cmin = np.inf
-        cmax = 0.0
-        for j in range(words):  # (apart from the pass above: a float min / max keeps it from vectorising)
-            cmin = min(cmin, cw[j])
-            cmax = max(cmax, cw[j])
-        # edges at or below every word's contrast: lo; at or below none: from hi on
-        lo = 0
-        while lo < edges.size and edges[lo] <= cmin:
-            lo += 1
-        hi = lo
-        while hi < edges.size and edges[hi] <= cmax:
-            hi += 1
-        for j in range(words):
-            fu[j] = lo
-        for e in range(lo, hi):
-            edge = edges[e]
-            for j in range(words):
-                fu[j] += 1.0 if cw[j] >= edge else 0.0
-        # each word's P_c - lbest (in cost): the prior's cell added
-        for j in range(words):
-            iu = fu[j] - 1.0
-            iw = fw[j]
-            inside = iu >= 0.0 and iu < rows and iw >= 0.0 and iw < cols
-            cell = table[int(iu if inside else 0.0) * cols + int(iw if inside else 0.0)]
-            cost[j] = cost[j] - lbest + (cell if inside else pout)
-    else:
-        for j in range(words):
-            cost[j] = cost[j] - lbest
-    for j in range(words):  # the words for the exact path
-        if exact[j] != 0.0:
-            cost[j] = _word_cost(m, wn[j], tot, ws[j], sq, wq[j], a, beta, ptab, pu0, pdu, pw0, pdw, pout,
-                                 use_prior) - lbest
-    # the words within the skip, in order (branch-free; their indices in fw, done with), then their odds
-    kept = 0
-    for j in range(words):
-        fw[kept] = j
-        kept += 1 if cost[j] <= skip else 0
     total = 0.0
-    for t in range(kept):
-        d = cost[int(fw[t])]
-        total += np.exp(-0.5 * (d if d > -_CLIP else -_CLIP))
+    for j0 in range(0, words, TAIL_BLOCK):
+        j1 = min(words, j0 + TAIL_BLOCK)
+        # the block's views (1-d contiguous, indexed from 0: the loops vectorise)
+        bn = wn[j0:j1]
+        bs = ws[j0:j1]
+        bq = wq[j0:j1]
+        bc = cost[j0:j1]
+        bw = cw[j0:j1]
+        bf = fw[j0:j1]
+        bx = exact[j0:j1]
+        bu = fu[j0:j1]
+        size = j1 - j0
+        for j in range(size):
+            bn[j] = n1
+            bs[j] = s1
+            bq[j] = q1
+        for i in range(columns.shape[0]):  # bit by bit in ascending order, as the scalar sums (x + 0 * d is x)
+            en = dn[i]
+            es = ds[i]
+            eq = dq[i]
+            row = columns[i][j0:j1]
+            for j in range(size):
+                f = row[j]
+                bn[j] += f * en
+                bs[j] += f * es
+                bq[j] += f * eq
+        for j in range(size):
+            tn = bn[j]
+            b, c, n0, v0, v1, ss0, ss1 = _refit(m, tn, tot, bs[j], sq, bq[j], a, beta)
+            z0 = (v0 - vr0) / (v0 + vr0)
+            z1 = (v1 - vr1) / (v1 + vr1)
+            bp = b if b > 0.0 else 0.0
+            cp = c if c > C_FLOOR else C_FLOOR
+            bc[j] = ((ss0 if ss0 > 0.0 else 0.0) / v0 + n0 * (g0 + _atanh2(z0))
+                     + (ss1 if ss1 > 0.0 else 0.0) / v1 + tn * (g1 + _atanh2(z1)))
+            bx[j] = 0.0 if abs(z0) <= third and abs(z1) <= third else 1.0
+            bw[j] = cp
+            bf[j] = np.floor((bp / (bp + cp) - pw0) / pdw)
+        if use_prior:
+            cmin = np.inf
+            cmax = 0.0
+            for j in range(size):  # (apart from the pass above: a float min / max keeps it from vectorising)
+                cmin = min(cmin, bw[j])
+                cmax = max(cmax, bw[j])
+            # edges at or below every word's contrast: lo; at or below none: from hi on
+            lo = 0
+            while lo < edges.size and edges[lo] <= cmin:
+                lo += 1
+            hi = lo
+            while hi < edges.size and edges[hi] <= cmax:
+                hi += 1
+            for j in range(size):
+                bu[j] = lo
+            for e in range(lo, hi):
+                edge = edges[e]
+                for j in range(size):
+                    bu[j] += 1.0 if bw[j] >= edge else 0.0
+            # each word's P_c - lbest (in cost): the prior's cell added
+            for j in range(size):
+                iu = bu[j] - 1.0
+                iw = bf[j]
+                inside = iu >= 0.0 and iu < rows and iw >= 0.0 and iw < cols
+                cell = table[int(iu if inside else 0.0) * cols + int(iw if inside else 0.0)]
+                bc[j] = bc[j] - lbest + (cell if inside else pout)
+        else:
+            for j in range(size):
+                bc[j] = bc[j] - lbest
+        for j in range(size):  # the words for the exact path
+            if bx[j] != 0.0:
+                bc[j] = _word_cost(m, bn[j], tot, bs[j], sq, bq[j], a, beta, ptab, pu0, pdu, pw0, pdw, pout,
+                                   use_prior) - lbest
+        # the block's words within the skip, in order (branch-free; their indices in bf, done
+        # with), then their odds
+        kept = 0
+        for j in range(size):
+            bf[kept] = j
+            kept += 1 if bc[j] <= skip else 0
+        for t in range(kept):
+            d = bc[int(bf[t])]
+            total += np.exp(-0.5 * (d if d > -_CLIP else -_CLIP))
+        if total >= enough:
+            break
     return total
 
 
@@ -1063,6 +1094,8 @@ def _atanh2(z):
     return 2.0 * z * p
 
 
+#: `_tail_words` scores the words in blocks of this many (and may stop after a block).
+TAIL_BLOCK = 64
 #: The tail words `_tail_words` leaves out (``P_c - lbest`` above the skip, `_skip_cost`) add
 #: less than this together: the error probability is exact to it.
 TAIL_ACCURACY = 1e-8
@@ -1082,7 +1115,8 @@ TAIL_WEIGHTS = 2
 TAIL_WORDS = 1024
 #: The tail mass is skipped where its bound (all of them as likely as the third candidate) is
 #: below this (an error probability far below any target), and where the top three already
-#: give P(confused) >= 1/2 (invalid under any target; the published value is then a lower bound).
+#: give P(confused) >= 1/2 (invalid under any target; the published value is then a lower bound);
+#: its sum stops (`_tail_words`, after a block) once it takes P(confused) to 1/2.
 TAIL_FLOOR = 1e-4
 #: The least share of a flip's cost under c1's levels that is left once the word's own levels are
 #: refitted (`_tail_mass`'s skip bound): without noise it is 1 - d / m for d flipped samples of m,

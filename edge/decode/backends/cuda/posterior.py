@@ -39,7 +39,7 @@ import numpy as np
 from numba import cuda
 
 from ...level_prior import C_FLOOR
-from ...posterior import TAIL_REFIT_SHARE
+from ...posterior import TAIL_BLOCK, TAIL_REFIT_SHARE
 from .cost import MAX_N, mul64, pixel_of, sort_small
 
 TPB = 128
@@ -300,8 +300,9 @@ def _word_cost(m, n1, tot, s1, sq, q1, a, beta, ptab, pu0, pdu, pw0, pdw, pout, 
 
 @cuda.jit(device=True)
 def _tail_mass(buf, xs, rk, lbest, count, ns, nbits, xtab, a, beta, packed, flips, flip_bits, flip_w, weight, wlo, whi,
-               floor, ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin, dn, ds, dq, delta, sorted_d):
-    """`posterior._tail_mass` (see there)."""
+               floor, ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin, enough, dn, ds, dq, delta, sorted_d):
+    """`posterior._tail_mass` (see there; every word summed, not only those within the skip, and
+    the sum stopped after the same blocks of `TAIL_BLOCK` words)."""
     m = ns + 2
     b, c = _fit(buf, xs, rk[0], ns, xtab)
     for i in range(ns):
@@ -355,19 +356,8 @@ def _tail_mass(buf, xs, rk, lbest, count, ns, nbits, xtab, a, beta, packed, flip
                 dq[i] += mul64(r, r)
             j += nbits
     own = packed[rk[0]]
-    total = 0.0
-    for j in range(flips.shape[0]):
-        wn = n1
-        ws = s1
-        wq = q1
-        for t in range(flip_w[j]):
-            bit = flip_bits[j, t]
-            wn += dn[bit]
-            ws += ds[bit]
-            wq += dq[bit]
-        total += _clipped_exp(_word_cost(m, wn, tot, ws, sq, wq, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use_prior)
-                              - lbest)
-    total = mul64(total, weight)
+    own1 = 0.0  # the scored candidates' terms (not tail)
+    own2 = 0.0
     for k in range(1, count):
         word = own ^ packed[rk[k]]
         bits = 0
@@ -381,8 +371,28 @@ def _tail_mass(buf, xs, rk, lbest, count, ns, nbits, xtab, a, beta, packed, flip
                 ws += ds[i]
                 wq += dq[i]
         if wlo <= bits and bits <= whi:
-            total -= _clipped_exp(_word_cost(m, wn, tot, ws, sq, wq, a, beta, ptab, pu0, pdu, pw0, pdw, pout,
-                                             use_prior) - lbest)
+            e = _clipped_exp(_word_cost(m, wn, tot, ws, sq, wq, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use_prior)
+                             - lbest)
+            if k == 1:
+                own1 = e
+            else:
+                own2 = e
+    stop = (enough + own1 + own2) / weight
+    total = 0.0
+    for j in range(flips.shape[0]):
+        wn = n1
+        ws = s1
+        wq = q1
+        for t in range(flip_w[j]):
+            bit = flip_bits[j, t]
+            wn += dn[bit]
+            ws += ds[bit]
+            wq += dq[bit]
+        total += _clipped_exp(_word_cost(m, wn, tot, ws, sq, wq, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use_prior)
+                              - lbest)
+        if (j + 1) % TAIL_BLOCK == 0 and total >= stop:
+            break
+    total = mul64(total, weight) - own1 - own2
     return total if total > 0.0 else 0.0
 
 
@@ -462,9 +472,10 @@ def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits,
     nflips = flips.shape[0]
     if (nflips > 0 and count == 3 and mul64(mul64(np.float64(nflips), tail_weight), ek) > floor
             and far < 1.0 + every - far):
+        enough = (1.0 + every - mul64(2.0, far)) / in_band  # P(confused) 1/2 (`posterior._posterior`)
         tail = mul64(in_band, _tail_mass(buf, xs, rk, lk[0], count, ns, nbits, xtab, a, beta, packed, flips, flip_bits,
                                          flip_w, tail_weight, wlo, whi, floor, ptab, pu0, pdu, pw0, pdw, pout,
-                                         use_prior, pmin, dn, ds, dq, delta, sorted_d))
+                                         use_prior, pmin, enough, dn, ds, dq, delta, sorted_d))
         far += tail
         every += tail
     out_comp[yy, xx] = far / (1.0 + every)
