@@ -437,3 +437,25 @@ def test_tail_words_match_the_exact_sum_over_words(with_prior, reference):
         assert exact_path > 0.5 * 40 * words  # the exact path was taken, and agrees
     if with_prior:
         assert stopped > 0  # some sums stopped before the last block
+
+
+def test_stable_order_is_numpys_stable_argsort():
+    """`posterior.stable_order` (the noise fit's sort) gives np.argsort(kind="stable")'s indices:
+    distinct values, a few runs of ties (-0.0 and 0.0 among them), many runs, NaN."""
+    from edge.decode.posterior import stable_order
+
+    rng = np.random.default_rng(3)
+    for trial in range(200):
+        n = int(rng.integers(1, 3000))
+        kind = trial % 4
+        x = rng.random(n)
+        if kind == 1:
+            x = rng.integers(0, 200, n).astype(np.float64)
+        elif kind == 2:
+            x[rng.integers(0, n, 10)] = 0.5
+            x[:3] = -0.0
+            x[3:5] = 0.0
+        elif kind == 3:
+            x[rng.integers(0, n, 5)] = np.nan
+            x[rng.integers(0, n, 5)] = 0.25
+        assert np.array_equal(stable_order(x), np.argsort(x, kind="stable")), trial

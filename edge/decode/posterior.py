@@ -405,6 +405,21 @@ def _fit_stats(frames, white, black, scale, xtab, best, step_y, step_x, out_s2, 
             out_mu[ry, rx] = mu / m
 
 
+def stable_order(x: np.ndarray) -> np.ndarray:
+    """``np.argsort(x, kind="stable")`` of a 1-d float array, the same indices, faster where
+    numpy's default sort is SIMD (and the noise fit's levels hold many ties): that sort, then
+    the positions numbered by run of equal values (NaN equal to NaN) and the keys ``run * size +
+    index`` sorted (int64, unique: ascending index within a run)."""
+    n = x.size
+    order = np.argsort(x)
+    s = x[order]
+    new_run = s[1:] != s[:-1]
+    new_run &= ~(np.isnan(s[1:]) & np.isnan(s[:-1]))
+    run = np.zeros(n, np.int64)
+    np.cumsum(new_run, out=run[1:])
+    return np.sort(run * n + order) % n
+
+
 def _chi2_median_ratio(k: int) -> float:
     """Median of chi2_k / k (Wilson-Hilferty)."""
     return float((1.0 - 2.0 / (9.0 * k)) ** 3)
@@ -460,7 +475,7 @@ def _noise_from(s2: np.ndarray, mu: np.ndarray, frames: np.ndarray, scale: float
         return prior_noise
     s2v, muv = s2[ok], mu[ok]
     # NOISE_BINS equal-count bins of the mean level (its quantile bins): one sort, medians per slice
-    order = np.argsort(muv, kind="stable")
+    order = stable_order(muv)
     muv, s2v = muv[order], s2v[order]
     corr = _chi2_median_ratio(frames.shape[0])
     xs, ys, ws = [], [], []
