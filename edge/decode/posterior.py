@@ -1219,7 +1219,8 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
                 else np.ascontiguousarray(distances, np.float32))
     _posterior(_samples(frames, inverse), white, black, np.float64(scale), xtab, code.n, cand, searched,
                float(noise.a), float(noise.beta), tail.packed, tail.flips, tail.columns, float(tail.weight),
-               int(tail.wlo), int(tail.whi), min(1.0, choices / code.size), bool(np.isin(xtab, (0.0, 1.0)).all()), max(1, get_num_threads()),
+               int(tail.wlo), int(tail.whi), min(1.0, choices / code.size), bool(np.isin(xtab, (0.0, 1.0)).all()),
+               max(1, get_num_threads()),
                *kernel_args(noise.levels), contrast_edges(noise.levels), _skip_cost(tail.flips.size * tail.weight),
                out_cand, out_dist, competitors, gain, conf, contrast)
     fdr, idx = _not_lit_lookup(gain, code, choices, has_inv)
