@@ -1,0 +1,32 @@
+"""tools/profile_decode.py on a small capture: every table row is printed and the decoder's stage
+functions are the originals again afterwards (the tool wraps them only while it times)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import edge.decode.decoder as decoder
+import edge.decode.posterior as posterior
+
+TOOL = Path(__file__).resolve().parents[1] / "tools" / "profile_decode.py"
+
+
+def _tool():
+    spec = importlib.util.spec_from_file_location("profile_decode", TOOL)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_profile_decode_prints_every_row_and_restores_the_stages(capsys):
+    tool = _tool()
+    before = {name: getattr(decoder, name) for name in tool.STAGES}
+    flips, combine = posterior._flips, posterior._combine
+    assert tool.main(["--repeats", "1", "--height", "48", "--width", "64"]) == 0
+    out = capsys.readouterr().out
+    for row in ("| easy |", "| easy, band [0, 128] |", "| hard |", "| hard, band [", "| as is |",
+                "| no tail anywhere |", "| no tail where P(not lit) >= 1/2 |", "the tail's gate passes"):
+        assert row in out, row
+    assert all(getattr(decoder, name) is fn for name, fn in before.items())
+    assert posterior._flips is flips and posterior._combine is combine

@@ -1,0 +1,189 @@
+"""Where `decode()`'s time goes under the default error rule, stage by stage, and what the
+error rule's tail mass costs and on which pixels.
+
+    python tools/profile_decode.py [--repeats 5] [--height 600 --width 700] [--seed 0]
+
+Inputs: `tools/bench_decode.py`'s two 600 x 700 captures of ecc-22-10 (the high-SNR "easy" one
+and the "hard" regime: fixed total exposure, ambient = projector, 12-bit), each decoded over all
+codewords and in its disparity band, with `decode()`'s defaults.
+
+Stage table: the median wall time of each stage that `edge.decode.decoder._decode_error_rule`
+calls (split levels, the float32 copy of the frames for the search, the candidate search, the
+noise fit, the posterior), timed by wrapping the decoder module's references to them for the
+duration of the run (nothing else is changed), next to the median of the whole call.
+
+Tail table (hard regime, all codewords): the tail mass (`posterior._tail_mass`) runs on the
+pixels whose third candidate is not negligible; the table gives how many pixels that is, how
+many of them end with P(wrong) >= 1/2, and how many have P(not lit) >= 1/2, where the tail cannot
+bring P(wrong) below 1/2 and the published value may be a lower bound anyway.  It then times
+`posterior()` alone three ways on the same inputs: as it is, with no tail at all (a binary code
+without tail tables), and without the tail, the second and the third candidate on the pixels of
+P(not lit) >= 1/2 (those candidates marked beyond `posterior.SKIP_MARGIN`): what a posterior that
+computed the not-lit test before the tail could save.  The last two change the outputs; they are
+timings, not decoders.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_decode import make_hard_input, make_input  # noqa: E402
+
+import edge.decode.decoder as decoder  # noqa: E402
+import edge.decode.posterior as posterior  # noqa: E402
+from edge.decode import decode  # noqa: E402
+
+#: The decoder module's stage functions that are timed (`decoder._decode_error_rule`'s calls).
+STAGES = ("split_levels", "split_capture", "search_candidates", "fit_noise", "posterior")
+
+
+@contextlib.contextmanager
+def stage_timer(seconds: dict[str, list[float]]):
+    """Wrap `STAGES` in `edge.decode.decoder` so that each call appends its wall seconds to
+    ``seconds[name]``; the originals are restored on exit."""
+    originals = {name: getattr(decoder, name) for name in STAGES}
+
+    def timed(name, fn):
+        def call(*args, **kwargs):
+            t0 = time.perf_counter()
+            out = fn(*args, **kwargs)
+            seconds.setdefault(name, []).append(time.perf_counter() - t0)
+            return out
+        return call
+
+    try:
+        for name, fn in originals.items():
+            setattr(decoder, name, timed(name, fn))
+        yield
+    finally:
+        for name, fn in originals.items():
+            setattr(decoder, name, fn)
+
+
+def median_ms(fn, repeats: int) -> float:
+    fn()  # compile or load the kernels, fill the caches
+    wall = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        wall.append(time.perf_counter() - t0)
+    return 1e3 * statistics.median(wall)
+
+
+def stage_rows(label: str, call, repeats: int) -> None:
+    call()
+    seconds: dict[str, list[float]] = {}
+    with stage_timer(seconds):
+        total = median_ms(call, repeats)
+    parts = {k: 1e3 * statistics.median(v[1:]) for k, v in seconds.items()}  # v[0]: the warm-up call
+    rest = total - sum(parts.values())
+    cells = " | ".join(f"{parts.get(k, 0.0):.1f}" for k in STAGES)
+    print(f"| {label} | {total:.1f} | {cells} | {rest:.1f} |")
+
+
+def captured_posterior_args(call):
+    """The positional and keyword arguments `decode` passes to `posterior` (one call)."""
+    seen = {}
+    original = decoder.posterior
+
+    def spy(*args, **kwargs):
+        seen["args"], seen["kwargs"] = args, kwargs
+        return original(*args, **kwargs)
+
+    decoder.posterior = spy
+    try:
+        call()
+    finally:
+        decoder.posterior = original
+    return seen["args"], seen["kwargs"]
+
+
+def not_lit(args, kwargs) -> np.ndarray:
+    """(H, W) P(not lit) of every pixel (1 where there is no candidate), from one posterior call."""
+    seen = {}
+    original = posterior._combine
+
+    def spy(idx, competitors, fdr, out):
+        seen["idx"], seen["fdr"] = idx.copy(), fdr.copy()
+        original(idx, competitors, fdr, out)
+
+    posterior._combine = spy
+    try:
+        posterior.posterior(*args, **kwargs)
+    finally:
+        posterior._combine = original
+    idx = seen["idx"]
+    return np.where(idx >= 0, seen["fdr"][np.maximum(idx, 0)], 1.0)
+
+
+def tail_rows(code, cap, repeats: int) -> None:
+    call = lambda: decode(cap.frames, cap.white, cap.black, code, bit_depth=cap.bit_depth)  # noqa: E731
+    args, kwargs = captured_posterior_args(call)
+    out = posterior.posterior(*args, **kwargs)
+    dist = out.distances.astype(np.float64)
+    tables = posterior._flips(code)
+    third = np.exp(-np.minimum((dist[..., 2] - dist[..., 0]) / 2.0, 700.0))
+    gated = ((out.candidates >= 0).all(-1) & np.isfinite(dist).all(-1)
+             & (tables.flips.size * tables.weight * third > posterior.TAIL_FLOOR))
+    dark = not_lit(args, kwargs) >= 0.5
+    total = out.error.size
+    print(f"pixels {total}; the tail's gate passes {int(gated.sum())} ({gated.mean():.1%}); of those "
+          f"P(wrong) >= 1/2: {(out.error[gated] >= 0.5).mean():.1%}, P(not lit) >= 1/2: {dark[gated].mean():.1%}")
+    as_is = median_ms(lambda: posterior.posterior(*args, **kwargs), repeats)
+    original = posterior._flips
+    no_tables = posterior.TailTables(np.zeros(1, np.uint64), np.zeros(0, np.uint64), np.zeros((0, 1), np.int32),
+                                     np.zeros(1, np.int32), np.zeros((1, 0), np.float64), 1.0, 0, 0)
+    posterior._flips = lambda c: no_tables
+    try:
+        no_tail = median_ms(lambda: posterior.posterior(*args, **kwargs), repeats)
+    finally:
+        posterior._flips = original
+    searched = np.array(kwargs["distances"], np.float32, copy=True)
+    skip = dark & gated
+    searched[skip, 1:] = searched[skip, :1] + np.float32(10 * posterior.SKIP_MARGIN)
+    lit_only = median_ms(lambda: posterior.posterior(*args, **dict(kwargs, distances=searched)), repeats)
+    print("| posterior() | median ms | vs as is |")
+    print("|---|---|---|")
+    print(f"| as is | {as_is:.1f} | 1.00 |")
+    print(f"| no tail anywhere | {no_tail:.1f} | {no_tail / as_is:.2f} |")
+    print(f"| no tail where P(not lit) >= 1/2 | {lit_only:.1f} | {lit_only / as_is:.2f} |")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--repeats", type=int, default=5, help="timed calls per row (median)")
+    ap.add_argument("--height", type=int, default=600, help="image height of the inputs (pixels)")
+    ap.add_argument("--width", type=int, default=700, help="image width of the inputs (pixels)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of both inputs")
+    args = ap.parse_args(argv)
+    h, w = args.height, args.width
+    code, _, easy = make_input(h, w, 128, args.seed)
+    hcode, _, hard, band = make_hard_input(h, w, args.seed)
+    print(f"decode() defaults, ecc-22-10, {h} x {w}; stage medians in ms (rest: validation, masks, glue)\n")
+    print("| input | whole | " + " | ".join(STAGES) + " | rest |")
+    print("|---" * (len(STAGES) + 3) + "|")
+    stage_rows("easy", lambda: decode(easy.frames, easy.white, easy.black, code), args.repeats)
+    stage_rows("easy, band [0, 128]", lambda: decode(easy.frames, easy.white, easy.black, code,
+                                                   min_disparity=0, max_disparity=128), args.repeats)
+    stage_rows("hard", lambda: decode(hard.frames, hard.white, hard.black, hcode, bit_depth=hard.bit_depth),
+               args.repeats)
+    stage_rows(f"hard, band [{band[0]}, {band[1]}]", lambda: decode(
+        hard.frames, hard.white, hard.black, hcode, bit_depth=hard.bit_depth, min_disparity=band[0],
+        max_disparity=band[1]), args.repeats)
+    print("\nThe tail mass, hard regime, all codewords:\n")
+    tail_rows(hcode, hard, args.repeats)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
