@@ -44,9 +44,10 @@ Three pure steps over numpy arrays (numba kernels, one pass over the pixels each
      (`_tail_mass`: each word with its own refitted levels, in closed form from per-bit sums, and
      the prior), scaled by the share of the codebook a disparity band allows; not where the
      search found fewer than three or the third is already negligible, and not where the top
-     three already give P(confused) >= 1/2; the sum over the tail's words stops once it takes
-     P(confused) to 1/2 (from 1/2 up the published value may be a lower bound: such a pixel is
-     invalid under any target).  Without the prior a
+     three already give P(confused) >= 1/2, and not where P(not lit) (below) is >= 1/2, since
+     P(wrong) is >= 1/2 there whatever the tail adds; the sum over the tail's words stops once it
+     takes P(confused) to 1/2 (from 1/2 up the published value may be a lower bound: such a pixel
+     is invalid under any target).  Without the prior a
      far competitor's flat-prior odds overstate it where the scene has no pixels at its levels;
      without the refit the tail words, scored under c1's levels, lose about 3/4 of their mass.
    * ``P(not lit)`` (shadow, outside the projector): a local false-discovery rate on the gain
@@ -67,9 +68,12 @@ flip costs take two logs per pixel.  The tail's words (`_tail_words`) are scored
 passes over blocks of `TAIL_BLOCK` of a pixel's words at once (vectorised), with each word's two log-variances by a
 series about c1's (to 2e-11) and its prior cell by counting cell edges, and words whose odds are
 below exp(-skip / 2) are left out of the sum (together less than `TAIL_ACCURACY`; the CUDA backend
-sums every word exactly, and the two agree to that).  P(not lit) and P(wrong) are one binning
-and one combining pass; `_posterior` interleaves the rows over the threads (the tail mass makes
-hard regions far costlier).  The search's input under the split levels is `normalised32` (float32 frames, one pass).
+sums every word exactly, and the two agree to that).  The tail is a second pass
+(`_tail_pass`) after P(not lit)'s binning, over the pixels where it is due and P(not lit) < 1/2
+(in the hard regime of `tools/bench_decode.py` about half of the due pixels are shadow pixels);
+each of them gets the one-pass arithmetic bit for bit.  P(wrong) is one combining pass;
+`_posterior` and `_tail_pass` interleave the rows over the threads (the tail mass makes hard
+regions far costlier).  The search's input under the split levels is `normalised32` (float32 frames, one pass).
 """
 
 from __future__ import annotations
@@ -666,13 +670,15 @@ def _interleaved(j, chunk, k):
 
 
 @njit(cache=True, parallel=True)
-def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta, packed, flips, columns,
-               tail_weight, wlo, whi, in_band, binary, threads, ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin,
-               edges, skip, out_cand, out_dist, out_err, out_gain, out_conf, out_contrast):
-    """Step 3 per pixel, LANES pixels of a row at a time: the hypotheses' NLLs lane-parallel
-    (`_lane_nll`, `_lane_flat`; `_nll` per lane where the code is not binary), then each pixel's
-    ordering, odds and tail mass.  Rows interleaved over the `threads` threads (`_interleaved`:
-    the tail mass makes some regions far costlier than others)."""
+def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta, flips, tail_weight, binary,
+               threads, ptab, pu0, pdu, pw0, pdw, pout, use_prior, out_cand, out_dist, out_err, out_gain, out_conf,
+               out_contrast, out_far, out_every, out_lbest, out_tail):
+    """Step 3 per pixel but the tail mass, LANES pixels of a row at a time: the hypotheses' NLLs
+    lane-parallel (`_lane_nll`, `_lane_flat`; `_nll` per lane where the code is not binary), then
+    each pixel's ordering and odds.  out_err: the top three's P(confused) = far / (1 + every);
+    out_tail (H, W) uint8: 1 where the tail mass is due (`_tail_pass` adds it), with the pixel's
+    far, every and best -2 log-posterior lk[0] (float64) in out_far / out_every / out_lbest (left
+    as they are elsewhere).  Rows interleaved over the `threads` threads (`_interleaved`)."""
     n, height, width = frames.shape
     m = n + 2
     L = LANES
@@ -687,13 +693,6 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
         S = np.empty((9, L), np.float64)
         buf = np.empty(m, np.float64)
         xs = np.empty(m, np.float64)
-        dn = np.empty(n, np.float64)
-        ds = np.empty(n, np.float64)
-        dq = np.empty(n, np.float64)
-        words = columns.shape[1]
-        work = np.empty((8, words), np.float64)
-        delta = np.empty(n, np.float64)
-        sorted_d = np.empty(n, np.float64)
         sr = np.empty(L, np.float64)
         rows = np.empty((3, L), np.int32)
         scored = np.empty((3, L), np.bool_)
@@ -708,7 +707,6 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
         ck = np.empty(3, np.float64)
         rk = np.empty(3, np.int32)
         rest = np.empty(3, np.int32)
-        prior = (ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin, edges)
         for x0 in range(0, width, L):
             _lane_samples(frames, white, black, scale, yy, x0, R)
             for l in range(L):
@@ -799,20 +797,15 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
                     every += ek
                     if abs(rk[k] - rk[0]) > 1:
                         far += ek
-                # the codewords beyond the top three: none where the search found fewer (a narrow
-                # band holds no more), negligible where even the third is (the search ranks the rest
-                # below it), else `_tail_mass` scaled to the share of the codebook the band allows
-                if use_tail and count == 3 and flips.size * tail_weight * ek > TAIL_FLOOR and far < 1.0 + every - far:
-                    for i in range(m):
-                        buf[i] = R[i, l]
-                    # P(wrong) = (far + tail) / (1 + every + tail) >= 1/2 once tail >= 1 + every - 2 far: the
-                    # sum may stop there (invalid under any target; the published value a lower bound)
-                    enough = (1.0 + every - 2.0 * far) / in_band
-                    tail = in_band * _tail_mass(buf, xs, rk, lk[0], count, n, nbits, xtab, a, beta, packed, flips,
-                                                columns, tail_weight, wlo, whi, prior, skip, enough, dn, ds, dq,
-                                                delta, sorted_d, work)
-                    far += tail
-                    every += tail
+                # the codewords beyond the top three (`_tail_pass`): none where the search found fewer
+                # (a narrow band holds no more), negligible where even the third is (the search ranks
+                # the rest below it), none where the top three already give P(confused) >= 1/2
+                due = use_tail and count == 3 and flips.size * tail_weight * ek > TAIL_FLOOR and far < 1.0 + every - far
+                out_tail[yy, xx] = 1 if due else 0
+                if due:
+                    out_far[yy, xx] = far
+                    out_every[yy, xx] = every
+                    out_lbest[yy, xx] = lk[0]
                 out_err[yy, xx] = far / (1.0 + every)
                 if count > 1:
                     out_conf[yy, xx] = (mk[1] - mk[0]) / mk[1] if mk[1] > mk[0] else 0.0
@@ -821,6 +814,55 @@ def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta
                 else:
                     out_conf[yy, xx] = 0.0
                 out_contrast[yy, xx] = ck[0]
+
+
+@njit(cache=True, parallel=True)
+def _tail_pass(frames, white, black, scale, xtab, nbits, cand, tail, far, every, lbest, idx, fdr, a, beta, packed,
+               flips, columns, tail_weight, wlo, whi, in_band, threads, ptab, pu0, pdu, pw0, pdw, pout, use_prior,
+               pmin, edges, skip, out_err):
+    """Step 3's tail mass, after `_posterior` and the not-lit lookup: where ``tail`` is 1 and the
+    pixel's P(not lit) = fdr[idx] is below 1/2, `_tail_mass` scaled to the share of the codebook
+    the band allows is added to its far and every, and out_err = far / (1 + every) again (the
+    arithmetic of one pass, bit for bit).  Where P(not lit) >= 1/2 (or the gain is not finite),
+    P(wrong) >= 1/2 whatever the tail adds: it is left out (the published value a lower bound, as
+    where the sum stops).  Rows interleaved over the `threads` threads (`_interleaved`)."""
+    n, height, width = frames.shape
+    m = n + 2
+    chunk = (height + threads - 1) // threads
+    prior = (ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin, edges)
+    for it in prange(chunk * threads):
+        yy = _interleaved(it, chunk, threads)
+        if yy >= height:
+            continue
+        buf = np.empty(m, np.float64)
+        xs = np.empty(m, np.float64)
+        dn = np.empty(n, np.float64)
+        ds = np.empty(n, np.float64)
+        dq = np.empty(n, np.float64)
+        work = np.empty((8, columns.shape[1]), np.float64)
+        delta = np.empty(n, np.float64)
+        sorted_d = np.empty(n, np.float64)
+        rk = np.empty(3, np.int32)
+        for xx in range(width):
+            k = idx[yy, xx]
+            if tail[yy, xx] == 0 or k < 0 or fdr[k] >= 0.5:
+                continue
+            for i in range(n):  # the samples as `_lane_samples` loads them
+                buf[i] = frames[i, yy, xx] * scale
+            buf[n] = white[yy, xx] * scale
+            buf[n + 1] = black[yy, xx] * scale
+            for j in range(3):
+                rk[j] = cand[yy, xx, j]
+            f = far[yy, xx]
+            e = every[yy, xx]
+            # P(wrong) = (far + tail) / (1 + every + tail) >= 1/2 once tail >= 1 + every - 2 far: the
+            # sum may stop there (invalid under any target; the published value a lower bound)
+            enough = (1.0 + e - 2.0 * f) / in_band
+            t = in_band * _tail_mass(buf, xs, rk, lbest[yy, xx], 3, n, nbits, xtab, a, beta, packed, flips, columns,
+                                     tail_weight, wlo, whi, prior, skip, enough, dn, ds, dq, delta, sorted_d, work)
+            f += t
+            e += t
+            out_err[yy, xx] = f / (1.0 + e)
 
 
 @njit(cache=True, inline="always")
@@ -1217,13 +1259,22 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     xtab = _xtab(code, has_inv)
     searched = (np.zeros(cand.shape, np.float32) if distances is None
                 else np.ascontiguousarray(distances, np.float32))
-    _posterior(_samples(frames, inverse), white, black, np.float64(scale), xtab, code.n, cand, searched,
-               float(noise.a), float(noise.beta), tail.packed, tail.flips, tail.columns, float(tail.weight),
-               int(tail.wlo), int(tail.whi), min(1.0, choices / code.size), bool(np.isin(xtab, (0.0, 1.0)).all()),
-               max(1, get_num_threads()),
-               *kernel_args(noise.levels), contrast_edges(noise.levels), _skip_cost(tail.flips.size * tail.weight),
-               out_cand, out_dist, competitors, gain, conf, contrast)
+    samples = _samples(frames, inverse)
+    args = kernel_args(noise.levels)
+    threads = max(1, get_num_threads())
+    due = np.empty((h, w), np.uint8)
+    far = np.empty((h, w), np.float64)
+    every = np.empty((h, w), np.float64)
+    lbest = np.empty((h, w), np.float64)
+    _posterior(samples, white, black, np.float64(scale), xtab, code.n, cand, searched, float(noise.a),
+               float(noise.beta), tail.flips, float(tail.weight), bool(np.isin(xtab, (0.0, 1.0)).all()), threads,
+               *args[:7], out_cand, out_dist, competitors, gain, conf, contrast, far, every, lbest, due)
     fdr, idx = _not_lit_lookup(gain, code, choices, has_inv)
+    if tail.flips.size:
+        _tail_pass(samples, white, black, np.float64(scale), xtab, code.n, out_cand, due, far, every, lbest, idx, fdr,
+                   float(noise.a), float(noise.beta), tail.packed, tail.flips, tail.columns, float(tail.weight),
+                   int(tail.wlo), int(tail.whi), min(1.0, choices / code.size), threads, *args,
+                   contrast_edges(noise.levels), _skip_cost(tail.flips.size * tail.weight), competitors)
     err = np.empty((h, w), np.float32)
     _combine(idx, competitors, fdr, err)
     return Posterior(out_cand, out_dist, err, conf, contrast, noise)

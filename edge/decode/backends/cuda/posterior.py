@@ -15,9 +15,11 @@ then white and black, each ``float64(raw) * scale`` (`posterior._row_block`).
 * `fit_stats`: `posterior._fit_stats` on the `posterior._steps` subgrid (residual variance, mean
   level and the levels (b, c) of the noise fit and the level prior; downloaded whole: at most
   `posterior.FIT_PIXELS` pixels).
-* `posterior_kernel`: `posterior._posterior` (the top-3 refit NLLs plus the level prior
-  re-ordered, the flat hypothesis' gain ``L_0 - min L_k``, the competitor mass with `_tail_mass`,
-  every tail word refitted); writes
+* `posterior_kernel`: `posterior._posterior` and `posterior._tail_pass` in one (the top-3 refit
+  NLLs plus the level prior re-ordered, the flat hypothesis' gain ``L_0 - min L_k``, the
+  competitor mass with `_tail_mass`, every tail word refitted; the tail is summed on every pixel
+  where it is due, also where P(not lit) >= 1/2, which the CPU leaves out: there both P(wrong)
+  are >= 1/2, the CPU's the lower bound, and below 1/2 the two agree); writes
   candidates, distances, confidence, the gain and the competitor probability.
 * `gain_histogram`: the counts of `posterior.not_lit_probability` with atomics (bins of
   `posterior.gain_bins`, the finite gains, those below the null median): the host turns the
