@@ -197,7 +197,7 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     ref = [np.empty((h, w, 3), np.int32), np.empty((h, w, 3), np.float32), np.empty((h, w)), np.empty((h, w)),
            np.empty((h, w), np.float32), np.empty((h, w), np.float32)]
     due, far, every, lbest = (np.empty((h, w), np.uint8), np.empty((h, w)), np.empty((h, w)), np.empty((h, w)))
-    P._posterior(samples, white, black, scale, xtab, code.n, cand, searched, a, beta, flips, float(weight), True, 1,
+    P._posterior(samples, white, black, scale, xtab, cand, searched, a, beta, flips, float(weight), True, 1,
                  ptab, pu0, pdu, pw0, pdw, pout, use, *ref, far, every, lbest, due)
     # every due pixel's tail (P(not lit) = 0 everywhere: the device kernel sums every pixel's)
     P._tail_pass(samples, white, black, scale, xtab, code.n, ref[0], due, far, every, lbest,
@@ -220,7 +220,7 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
              for g, r in zip(got[1:], [ref[1], ref[2], ref[3], ref[4]])]
     # pixels whose competitor mass (ref[2]) has a tail term: it differs from the top three's alone
     top3 = [np.empty_like(r) for r in ref]
-    P._posterior(samples, white, black, scale, xtab, code.n, cand, searched, a, beta, np.zeros(0, np.uint64), 1.0,
+    P._posterior(samples, white, black, scale, xtab, cand, searched, a, beta, np.zeros(0, np.uint64), 1.0,
                  True, 1, ptab, pu0, pdu, pw0, pdw, pout, use, *top3, np.empty((h, w)), np.empty((h, w)),
                  np.empty((h, w)), np.empty((h, w), np.uint8))
     tails = int((ref[2] != top3[2]).sum())

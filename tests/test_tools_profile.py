@@ -22,11 +22,11 @@ def _tool():
 def test_profile_decode_prints_every_row_and_restores_the_stages(capsys):
     tool = _tool()
     before = {name: getattr(decoder, name) for name in tool.STAGES}
-    flips, combine = posterior._flips, posterior._combine
+    flips, tail_pass = posterior._flips, posterior._tail_pass
     assert tool.main(["--repeats", "1", "--height", "48", "--width", "64"]) == 0
     out = capsys.readouterr().out
     for row in ("| easy |", "| easy, band [0, 128] |", "| hard |", "| hard, band [", "| as is |",
                 "| no tail anywhere |", "the tail is due on"):
         assert row in out, row
     assert all(getattr(decoder, name) is fn for name, fn in before.items())
-    assert posterior._flips is flips and posterior._combine is combine
+    assert posterior._flips is flips and posterior._tail_pass is tail_pass

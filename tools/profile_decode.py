@@ -13,7 +13,8 @@ noise fit, the posterior), timed by wrapping the decoder module's references to 
 duration of the run (nothing else is changed), next to the median of the whole call.
 
 Tail table (hard regime, all codewords): the tail mass (`posterior._tail_mass`) is due on the
-pixels whose third candidate is not negligible; the table gives how many pixels that is, how
+pixels whose third candidate is not negligible and whose top three leave P(confused) below 1/2
+(`posterior._posterior`'s mask, read where `posterior._tail_pass` receives it); the table gives how many pixels that is, how
 many of them end with P(wrong) >= 1/2, and how many have P(not lit) >= 1/2, where
 `posterior._tail_pass` leaves the tail out (P(wrong) is >= 1/2 whatever it adds).  It then times
 `posterior()` alone as it is and with no tail at all (a binary code without tail tables: a
@@ -105,42 +106,39 @@ def captured_posterior_args(call):
     return seen["args"], seen["kwargs"]
 
 
-def not_lit(args, kwargs) -> np.ndarray:
-    """(H, W) P(not lit) of every pixel (1 where there is no candidate), from one posterior call."""
+def due_and_not_lit(args, kwargs) -> tuple[np.ndarray, np.ndarray]:
+    """From one posterior call: (H, W) bool where the tail mass is due (`posterior._posterior`'s
+    mask, as `posterior._tail_pass` receives it) and (H, W) P(not lit) (1 where the gain is not
+    finite)."""
     seen = {}
-    original = posterior._combine
+    original = posterior._tail_pass
 
-    def spy(idx, competitors, fdr, out):
-        seen["idx"], seen["fdr"] = idx.copy(), fdr.copy()
-        original(idx, competitors, fdr, out)
+    def spy(*a):
+        seen["due"], seen["idx"], seen["fdr"] = a[7].copy(), a[11].copy(), a[12].copy()
+        original(*a)
 
-    posterior._combine = spy
+    posterior._tail_pass = spy
     try:
         posterior.posterior(*args, **kwargs)
     finally:
-        posterior._combine = original
+        posterior._tail_pass = original
     idx = seen["idx"]
-    return np.where(idx >= 0, seen["fdr"][np.maximum(idx, 0)], 1.0)
+    return seen["due"] != 0, np.where(idx >= 0, seen["fdr"][np.maximum(idx, 0)], 1.0)
 
 
 def tail_rows(code, cap, repeats: int) -> None:
     call = lambda: decode(cap.frames, cap.white, cap.black, code, bit_depth=cap.bit_depth)  # noqa: E731
     args, kwargs = captured_posterior_args(call)
     out = posterior.posterior(*args, **kwargs)
-    dist = out.distances.astype(np.float64)
-    tables = posterior._flips(code)
-    third = np.exp(-np.minimum((dist[..., 2] - dist[..., 0]) / 2.0, 700.0))
-    gated = ((out.candidates >= 0).all(-1) & np.isfinite(dist).all(-1)
-             & (tables.flips.size * tables.weight * third > posterior.TAIL_FLOOR))
-    dark = not_lit(args, kwargs) >= 0.5
+    gated, p_not_lit = due_and_not_lit(args, kwargs)
+    dark = p_not_lit >= 0.5
     total = out.error.size
     print(f"pixels {total}; the tail is due on {int(gated.sum())} ({gated.mean():.1%}); of those "
           f"P(wrong) >= 1/2: {(out.error[gated] >= 0.5).mean():.1%}, P(not lit) >= 1/2 (tail left out): "
           f"{dark[gated].mean():.1%}")
     as_is = median_ms(lambda: posterior.posterior(*args, **kwargs), repeats)
     original = posterior._flips
-    no_tables = posterior.TailTables(np.zeros(1, np.uint64), np.zeros(0, np.uint64), np.zeros((0, 1), np.int32),
-                                     np.zeros(1, np.int32), np.zeros((1, 0), np.float64), 1.0, 0, 0)
+    no_tables = posterior.no_tail_tables()
     posterior._flips = lambda c: no_tables
     try:
         no_tail = median_ms(lambda: posterior.posterior(*args, **kwargs), repeats)

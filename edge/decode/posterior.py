@@ -70,7 +70,8 @@ series about c1's (to 2e-11) and its prior cell by counting cell edges, and word
 below exp(-skip / 2) are left out of the sum (together less than `TAIL_ACCURACY`; the CUDA backend
 sums every word exactly, and the two agree to that).  The tail is a second pass
 (`_tail_pass`) after P(not lit)'s binning, over the pixels where it is due and P(not lit) < 1/2
-(in the hard regime of `tools/bench_decode.py` about half of the due pixels are shadow pixels);
+(in the hard regime of `tools/bench_decode.py` about two in five of the due pixels are shadow
+pixels, `tools/profile_decode.py`);
 each of them gets the one-pass arithmetic bit for bit.  P(wrong) is one combining pass;
 `_posterior` and `_tail_pass` interleave the rows over the threads (the tail mass makes hard
 regions far costlier).  The search's input under the split levels is `normalised32` (float32 frames, one pass).
@@ -546,6 +547,17 @@ def _nll(buf, xs, row, n, xtab, a, beta, use_row):
 
 
 @njit(cache=True, inline="always")
+def _pixel_samples(frames, white, black, scale, y, x, buf):
+    """buf[:m] = the m normalised samples of pixel (y, x): code frames, white, black (the values
+    of `_lane_samples` and `_row_block`)."""
+    n = frames.shape[0]
+    for i in range(n):
+        buf[i] = frames[i, y, x] * scale
+    buf[n] = white[y, x] * scale
+    buf[n + 1] = black[y, x] * scale
+
+
+@njit(cache=True, inline="always")
 def _lane_samples(frames, white, black, scale, yy, x0, R):
     """R (m, LANES) float64 = the m normalised samples (``float64(raw) * scale``, as `_row_block`)
     of pixels x0 .. x0 + LANES - 1 of row yy; lanes past the row's end repeat its last pixel."""
@@ -670,7 +682,7 @@ def _interleaved(j, chunk, k):
 
 
 @njit(cache=True, parallel=True)
-def _posterior(frames, white, black, scale, xtab, nbits, cand, searched, a, beta, flips, tail_weight, binary,
+def _posterior(frames, white, black, scale, xtab, cand, searched, a, beta, flips, tail_weight, binary,
                threads, ptab, pu0, pdu, pw0, pdw, pout, use_prior, out_cand, out_dist, out_err, out_gain, out_conf,
                out_contrast, out_far, out_every, out_lbest, out_tail):
     """Step 3 per pixel but the tail mass, LANES pixels of a row at a time: the hypotheses' NLLs
@@ -847,10 +859,7 @@ def _tail_pass(frames, white, black, scale, xtab, nbits, cand, tail, far, every,
             k = idx[yy, xx]
             if tail[yy, xx] == 0 or k < 0 or fdr[k] >= 0.5:
                 continue
-            for i in range(n):  # the samples as `_lane_samples` loads them
-                buf[i] = frames[i, yy, xx] * scale
-            buf[n] = white[yy, xx] * scale
-            buf[n + 1] = black[yy, xx] * scale
+            _pixel_samples(frames, white, black, scale, yy, xx, buf)  # as `_lane_samples` loads them
             for j in range(3):
                 rk[j] = cand[yy, xx, j]
             f = far[yy, xx]
@@ -1201,6 +1210,12 @@ def _samples(frames: np.ndarray, inverse: np.ndarray | None) -> np.ndarray:
     return np.ascontiguousarray(frames) if inverse is None else np.concatenate([frames, inverse], axis=0)
 
 
+def no_tail_tables() -> TailTables:
+    """`TailTables` with no sampled word (L = 0): no tail term."""
+    return TailTables(np.zeros(1, np.uint64), np.zeros(0, np.uint64), np.zeros((0, 1), np.int32),
+                      np.zeros(1, np.int32), np.zeros((1, 0), np.float64), 1.0, 0, 0)
+
+
 def _flips(code: Code) -> TailTables:
     """The tail mass's tables (`TailTables`) of a binary linear code with n <= 64: its sampled
     words are an evenly spaced sample (at most TAIL_WORDS) of its nonzero codewords of weight
@@ -1209,8 +1224,7 @@ def _flips(code: Code) -> TailTables:
     key = id(code)
     hit = _FLIPS.get(key)
     if hit is None:
-        hit = TailTables(np.zeros(1, np.uint64), np.zeros(0, np.uint64), np.zeros((0, 1), np.int32),
-                         np.zeros(1, np.int32), np.zeros((1, 0), np.float64), 1.0, 0, 0)
+        hit = no_tail_tables()
         if code.q == 2 and code.is_linear and code.n <= 64:
             cb = np.asarray(code.codebook, np.uint64)
             packed = (cb << np.arange(code.n, dtype=np.uint64)).sum(axis=1, dtype=np.uint64)
@@ -1266,7 +1280,7 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     far = np.empty((h, w), np.float64)
     every = np.empty((h, w), np.float64)
     lbest = np.empty((h, w), np.float64)
-    _posterior(samples, white, black, np.float64(scale), xtab, code.n, cand, searched, float(noise.a),
+    _posterior(samples, white, black, np.float64(scale), xtab, cand, searched, float(noise.a),
                float(noise.beta), tail.flips, float(tail.weight), bool(np.isin(xtab, (0.0, 1.0)).all()), threads,
                *args[:7], out_cand, out_dist, competitors, gain, conf, contrast, far, every, lbest, due)
     fdr, idx = _not_lit_lookup(gain, code, choices, has_inv)

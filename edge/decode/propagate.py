@@ -49,7 +49,7 @@ from numba import njit, prange
 
 from ..codes import Code
 from .level_prior import cost_at, kernel_args
-from .posterior import Noise, _nll, _samples, _xtab
+from .posterior import Noise, _nll, _pixel_samples, _samples, _xtab
 from .sgm import penalties
 
 #: Column-block width of the vertical sweeps (each thread runs whole blocks, rows in order).
@@ -64,16 +64,6 @@ class Propagated(NamedTuple):
     candidates: np.ndarray
     distances: np.ndarray
     extra: np.ndarray
-
-
-@njit(cache=True, inline="always")
-def _load(frames, white, black, scale, y, x, buf):
-    """buf[:m] = the m normalised samples of pixel (y, x): code frames, white, black."""
-    n = frames.shape[0]
-    for i in range(n):
-        buf[i] = frames[i, y, x] * scale
-    buf[n] = white[y, x] * scale
-    buf[n + 1] = black[y, x] * scale
 
 
 @njit(cache=True, inline="always")
@@ -96,7 +86,7 @@ def _visit(frames, white, black, scale, xtab, cand, dist, a, beta, prior, bound,
                 known = True
         if not known:
             if not loaded:
-                _load(frames, white, black, scale, y, x, buf)
+                _pixel_samples(frames, white, black, scale, y, x, buf)
                 loaded = True
             lr, _, lc, lb = _nll(buf, xs, r, n, xtab, a, beta, True)
             if prior[6]:  # the level prior, as the posterior's distances include it
