@@ -124,15 +124,12 @@ ERR_RTOL, ERR_ATOL = 1e-6, 1e-7
 
 
 def error_agrees(ref, got) -> bool:
-    """P(wrong) of the CPU (ref) and the device (got) agree as the error rule states it: within
-    ERR_RTOL where the CPU's is below 1/2, and both at least 1/2 elsewhere (from 1/2 up the value
-    may be a lower bound: the CPU leaves the tail mass out where P(not lit) >= 1/2, the device
-    sums it; `posterior._tail_pass`)."""
+    """P(wrong) of the CPU (ref) and the device (got) agree: within ERR_RTOL everywhere (both
+    add the tail mass in a second pass, on the same pixels: `posterior._tail_pass`,
+    `tail_kernel`)."""
     if ref is None or got is None or ref.shape != got.shape:
         return False
-    below = ref < 0.5
-    return bool(np.array_equal(below, got < 0.5)
-                and np.allclose(ref[below], got[below], rtol=ERR_RTOL, atol=ERR_ATOL, equal_nan=True))
+    return bool(np.allclose(ref, got, rtol=ERR_RTOL, atol=ERR_ATOL, equal_nan=True))
 
 
 def check_error_rule(name, code_name, *, h, w, inverse=False, band=True, dtype=np.uint8, fitted=False, **opts):
@@ -199,7 +196,7 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     due, far, every, lbest = (np.empty((h, w), np.uint8), np.empty((h, w)), np.empty((h, w)), np.empty((h, w)))
     P._posterior(samples, white, black, scale, xtab, cand, searched, a, beta, flips, float(weight), True, 1,
                  ptab, pu0, pdu, pw0, pdw, pout, use, *ref, far, every, lbest, due)
-    # every due pixel's tail (P(not lit) = 0 everywhere: the device kernel sums every pixel's)
+    # every due pixel's tail (P(not lit) = 0 everywhere, on both)
     P._tail_pass(samples, white, black, scale, xtab, code.n, ref[0], due, far, every, lbest,
                  np.zeros((h, w), np.int64), np.zeros(1), a, beta, packed, flips, tail.columns, float(weight),
                  int(wlo), int(whi), 1.0, 1, ptab, pu0, pdu, pw0, pdw, pout, use, least, contrast_edges(prior),
@@ -207,14 +204,32 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     tb = posterior_tables(code, inverse)
     out = [cuda.device_array((h, w, 3), np.int32), cuda.device_array((h, w, 3), np.float32),
            cuda.device_array((h, w)), cuda.device_array((h, w)), cuda.device_array((h, w), np.float32)]
+    d_due, d_far, d_every, d_lbest = (cuda.device_array((h, w), np.uint8), cuda.device_array((h, w)),
+                                      cuda.device_array((h, w)), cuda.device_array((h, w)))
     inv = cuda.to_device(cap.inverse if inverse else np.zeros((1, 1, 1), cap.frames.dtype))
     grid = (h * w + post_k.TPB - 1) // post_k.TPB
+    d_frames, d_white, d_black, d_ptab = (cuda.to_device(cap.frames), cuda.to_device(white), cuda.to_device(black),
+                                          cuda.to_device(ptab))
     post_k.posterior_kernel[grid, post_k.TPB](
-        cuda.to_device(cap.frames), inv, inverse, cuda.to_device(white), cuda.to_device(black), scale, tb["xtab"],
-        int(code.n), cuda.to_device(cand), cuda.to_device(searched), float(P.SKIP_MARGIN), a, beta, tb["packed"],
-        tb["flips"], tb["flip_bits"], tb["flip_w"], tb["weight"], tb["wlo"], tb["whi"], 1.0, float(P.TAIL_FLOOR),
-        cuda.to_device(ptab), pu0, pdu, pw0, pdw, pout, use, least, *out)
+        d_frames, inv, inverse, d_white, d_black, scale, tb["xtab"], cuda.to_device(cand), cuda.to_device(searched),
+        float(P.SKIP_MARGIN), a, beta, tb["nflips"], tb["weight"], float(P.TAIL_FLOOR), d_ptab, pu0, pdu, pw0, pdw,
+        pout, use, *out, d_far, d_every, d_lbest, d_due)
+    # the tail pass with P(not lit) = 0 for every finite gain (one bin)
+    post_k.tail_kernel[grid, post_k.TPB](
+        d_frames, inv, inverse, d_white, d_black, scale, tb["xtab"], int(code.n), out[0], d_due, d_far, d_every,
+        d_lbest, out[3], cuda.to_device(np.zeros(2)), 1.0, 1, a, beta, tb["packed"], tb["flips"], tb["flip_bits"],
+        tb["flip_w"], tb["weight"], tb["wlo"], tb["whi"], 1.0, float(P.TAIL_FLOOR), d_ptab, pu0, pdu, pw0, pdw, pout,
+        use, least, out[2])
     got = [o.copy_to_host() for o in out]
+    ok_due = np.array_equal(d_due.copy_to_host(), due)
+    # and with P(not lit) = 3/4 for every gain the tail is left out, as on the CPU
+    shadow = cuda.to_device(np.full((h, w), -1.0))
+    post_k.tail_kernel[grid, post_k.TPB](
+        d_frames, inv, inverse, d_white, d_black, scale, tb["xtab"], int(code.n), out[0], d_due, d_far, d_every,
+        d_lbest, out[3], cuda.to_device(np.full(2, 0.75)), 1.0, 1, a, beta, tb["packed"], tb["flips"],
+        tb["flip_bits"], tb["flip_w"], tb["weight"], tb["wlo"], tb["whi"], 1.0, float(P.TAIL_FLOOR), d_ptab, pu0,
+        pdu, pw0, pdw, pout, use, least, shadow)
+    ok_due &= bool((shadow.copy_to_host() == -1.0).all())
     ok = np.array_equal(got[0], ref[0])
     close = [np.allclose(g, r, rtol=ERR_RTOL, atol=ERR_ATOL, equal_nan=True)
              for g, r in zip(got[1:], [ref[1], ref[2], ref[3], ref[4]])]
@@ -224,8 +239,8 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
                  True, 1, ptab, pu0, pdu, pw0, pdw, pout, use, *top3, np.empty((h, w)), np.empty((h, w)),
                  np.empty((h, w)), np.empty((h, w), np.uint8))
     tails = int((ref[2] != top3[2]).sum())
-    emit(name, ok and all(close) and use and 0 < tails,
-         f"candidates equal {ok}, distances / competitors / gain / confidence close {close}, "
+    emit(name, ok and ok_due and all(close) and use and 0 < tails,
+         f"candidates equal {ok}, tail due mask and shadow gate as on the CPU {ok_due}, distances / competitors / gain / confidence close {close}, "
          f"prior {use}, pixels with a tail mass {tails}/{h * w}")
 
 

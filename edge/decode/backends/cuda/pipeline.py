@@ -125,7 +125,7 @@ def posterior_tables(code: Code, inverse: bool) -> dict:
         t = {"xtab": cuda.to_device(_xtab(code, inverse)), "packed": cuda.to_device(tail.packed),
              "flips": cuda.to_device(tail.flips), "flip_bits": cuda.to_device(np.ascontiguousarray(tail.flip_bits)),
              "flip_w": cuda.to_device(tail.flip_w), "weight": float(tail.weight), "wlo": int(tail.wlo),
-             "whi": int(tail.whi)}
+             "whi": int(tail.whi), "nflips": int(tail.flips.shape[0])}
         _POST_TABLES[key] = t
     return t
 
@@ -149,8 +149,8 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     search reads); "refit" is `refit_stack`; otherwise the calibration levels.  Then the search,
     the subgrid fit stats (the host fits the noise model and the level prior
     from them: `edge.decode.posterior._noise_from`, `edge.decode.level_prior.level_prior`), the posterior kernel, the gain histogram
-    (atomics; the host turns its counts into the not-lit lookup, `posterior.fdr_lookup`) and
-    error / valid.  Host <-> device traffic besides the results: the split's compact fit stats
+    (atomics; the host turns its counts into the not-lit lookup, `posterior.fdr_lookup`), the
+    tail mass where it is due and P(not lit) < 1/2 (`tail_kernel`) and error / valid.  Host <-> device traffic besides the results: the split's compact fit stats
     (at most `FIT_PIXELS` pixels), the on / off levels where the ML search needs the CPU's
     per-pixel logs (no inverse frames), the subgrid fit stats, nb + 2 histogram counters down
     and the (nb + 1,) lookup up.  Returns device arrays candidates / distances (the posterior's:
@@ -219,12 +219,16 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     pconf = buffer(buffers, "post_confidence", (h, w), np.float32, stream)
     comp = buffer(buffers, "post_competitors", (h, w), np.float64, stream)
     gain = buffer(buffers, "post_gain", (h, w), np.float64, stream)
+    due = buffer(buffers, "post_tail_due", (h, w), np.uint8, stream)
+    far = buffer(buffers, "post_far", (h, w), np.float64, stream)
+    every = buffer(buffers, "post_every", (h, w), np.float64, stream)
+    lbest = buffer(buffers, "post_lbest", (h, w), np.float64, stream)
+    d_ptab = cuda.to_device(ptab, stream=stream)
+    nflips = tb["nflips"]
     post_k.posterior_kernel[grid, post_k.TPB, stream](
-        ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], int(code.n), cand, dist,
-        float(SKIP_MARGIN), float(noise.a), float(noise.beta), tb["packed"], tb["flips"], tb["flip_bits"],
-        tb["flip_w"], tb["weight"],
-        tb["wlo"], tb["whi"], min(1.0, choices / code.size), float(TAIL_FLOOR),
-        cuda.to_device(ptab, stream=stream), pu0, pdu, pw0, pdw, pout, use_prior, pmin, pc, pd, comp, gain, pconf)
+        ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], cand, dist,
+        float(SKIP_MARGIN), float(noise.a), float(noise.beta), nflips, tb["weight"], float(TAIL_FLOOR),
+        d_ptab, pu0, pdu, pw0, pdw, pout, use_prior, pc, pd, comp, gain, pconf, far, every, lbest, due)
     median, nb = gain_bins(code, choices, ds.has_inv)
     counts = cuda.to_device(np.zeros(nb + 2, np.int64), stream=stream)
     post_k.gain_histogram[grid, post_k.TPB, stream](gain, float(GAIN_BIN), nb, float(median), counts)
@@ -232,11 +236,19 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     total = int(c[nb])
     lookup = (np.zeros(nb + 1) if total == 0
               else fdr_lookup(c[:nb], total, int(c[nb + 1]), code, choices, ds.has_inv))
+    d_lookup = cuda.to_device(lookup, stream=stream)
+    if nflips:
+        post_k.tail_kernel[grid, post_k.TPB, stream](
+            ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], int(code.n), pc, due, far,
+            every, lbest, gain, d_lookup, float(GAIN_BIN), nb, float(noise.a), float(noise.beta), tb["packed"],
+            tb["flips"], tb["flip_bits"], tb["flip_w"], tb["weight"], tb["wlo"], tb["whi"],
+            min(1.0, choices / code.size), float(TAIL_FLOOR), d_ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin,
+            comp)
     err = buffer(buffers, "error", (h, w), np.float32, stream)
     col0 = buffer(buffers, "column0", (h, w), np.int32, stream)
     column = buffer(buffers, "column", (h, w), np.int32, stream)
     valid = buffer(buffers, "valid", (h, w), np.bool_, stream)
-    post_k.error_valid[grid, post_k.TPB, stream](gain, comp, pc, cuda.to_device(lookup, stream=stream),
+    post_k.error_valid[grid, post_k.TPB, stream](gain, comp, pc, d_lookup,
                                                  float(GAIN_BIN), nb, np.float32(s.max_error), err, col0, column,
                                                  valid)
     st = dict(st, noise_a=noise.a, noise_beta=noise.beta, noise_fitted=noise.fitted, rule="error",

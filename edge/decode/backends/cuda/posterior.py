@@ -15,16 +15,17 @@ then white and black, each ``float64(raw) * scale`` (`posterior._row_block`).
 * `fit_stats`: `posterior._fit_stats` on the `posterior._steps` subgrid (residual variance, mean
   level and the levels (b, c) of the noise fit and the level prior; downloaded whole: at most
   `posterior.FIT_PIXELS` pixels).
-* `posterior_kernel`: `posterior._posterior` and `posterior._tail_pass` in one (the top-3 refit
-  NLLs plus the level prior re-ordered, the flat hypothesis' gain ``L_0 - min L_k``, the
-  competitor mass with `_tail_mass`, every tail word refitted; the tail is summed on every pixel
-  where it is due, also where P(not lit) >= 1/2, which the CPU leaves out: there both P(wrong)
-  are >= 1/2, the CPU's the lower bound, and below 1/2 the two agree); writes
-  candidates, distances, confidence, the gain and the competitor probability.
+* `posterior_kernel`: `posterior._posterior` (the top-3 refit NLLs plus the level prior
+  re-ordered, the flat hypothesis' gain ``L_0 - min L_k``, the top three's competitor mass);
+  writes candidates, distances, confidence, the gain, the competitor probability and, where the
+  tail mass is due, the pixel's far / every / best cost and a due mask.
 * `gain_histogram`: the counts of `posterior.not_lit_probability` with atomics (bins of
   `posterior.gain_bins`, the finite gains, those below the null median): the host turns the
   nb + 2 counters into the (nb + 1,) lookup of `posterior.fdr_lookup` (the gain array stays on
   the device).
+* `tail_kernel`: `posterior._tail_pass` (the competitor mass of the codewords beyond the top
+  three with `_tail_mass`, every tail word refitted, on the due pixels whose P(not lit) from the
+  lookup is below 1/2, as on the CPU).
 * `error_valid`: P(wrong) ``1 - (1 - P(not lit)) (1 - P(confused))`` (float32), column0 and,
   for methods "soft" / "hard", ``valid = error < max_error``.
 
@@ -399,19 +400,17 @@ def _tail_mass(buf, xs, rk, lbest, count, ns, nbits, xtab, a, beta, packed, flip
 
 
 @cuda.jit
-def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits, cand, searched, skip_margin, a, beta,
-                     packed, flips, flip_bits, flip_w, tail_weight, wlo, whi, in_band, floor,
-                     ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin, out_cand, out_dist, out_comp, out_gain, out_conf):
+def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, cand, searched, skip_margin, a, beta,
+                     nflips, tail_weight, floor, ptab, pu0, pdu, pw0, pdw, pout, use_prior,
+                     out_cand, out_dist, out_comp, out_gain, out_conf, out_far, out_every, out_lbest, out_due):
     """`posterior._posterior` (without the contrast output, which the decoder does not use):
     searched (H, W, 3) float32 the search's distances; candidates more than `skip_margin` behind
-    the best are not rescored (kept after the scored ones with distance inf)."""
+    the best are not rescored (kept after the scored ones with distance inf).  out_comp: the top
+    three's P(confused) = far / (1 + every); out_due (H, W) uint8: 1 where the tail mass is due
+    (`tail_kernel` adds it; nflips words of weight tail_weight, the gate of `_posterior`), with
+    the pixel's far, every and best -2 log-posterior in out_far / out_every / out_lbest."""
     buf = cuda.local.array(MAX_M, np.float64)
     xs = cuda.local.array(MAX_M, np.float64)
-    dn = cuda.local.array(MAX_N, np.float64)
-    ds = cuda.local.array(MAX_N, np.float64)
-    dq = cuda.local.array(MAX_N, np.float64)
-    delta = cuda.local.array(MAX_M, np.float64)
-    sorted_d = cuda.local.array(MAX_N, np.float64)
     lk = cuda.local.array(3, np.float64)
     mk = cuda.local.array(3, np.float64)
     rk = cuda.local.array(3, np.int32)
@@ -471,15 +470,13 @@ def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits,
         every += ek
         if abs(rk[k] - rk[0]) > 1:
             far += ek
-    nflips = flips.shape[0]
-    if (nflips > 0 and count == 3 and mul64(mul64(np.float64(nflips), tail_weight), ek) > floor
-            and far < 1.0 + every - far):
-        enough = (1.0 + every - mul64(2.0, far)) / in_band  # P(confused) 1/2 (`posterior._posterior`)
-        tail = mul64(in_band, _tail_mass(buf, xs, rk, lk[0], count, ns, nbits, xtab, a, beta, packed, flips, flip_bits,
-                                         flip_w, tail_weight, wlo, whi, floor, ptab, pu0, pdu, pw0, pdw, pout,
-                                         use_prior, pmin, enough, dn, ds, dq, delta, sorted_d))
-        far += tail
-        every += tail
+    due = (nflips > 0 and count == 3 and mul64(mul64(np.float64(nflips), tail_weight), ek) > floor
+           and far < 1.0 + every - far)
+    out_due[yy, xx] = 1 if due else 0
+    if due:
+        out_far[yy, xx] = far
+        out_every[yy, xx] = every
+        out_lbest[yy, xx] = lk[0]
     out_comp[yy, xx] = far / (1.0 + every)
     if count > 1:
         out_conf[yy, xx] = np.float32((mk[1] - mk[0]) / mk[1]) if mk[1] > mk[0] else np.float32(0.0)
@@ -514,6 +511,44 @@ def gain_histogram(gain, bin_width, nb, median, counts):
     cuda.atomic.add(counts, nb, 1)
     if (g if g > 0.0 else 0.0) < median:
         cuda.atomic.add(counts, nb + 1, 1)
+
+
+@cuda.jit
+def tail_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits, cand, due, far, every, lbest, gain, lookup,
+                bin_width, nb, a, beta, packed, flips, flip_bits, flip_w, tail_weight, wlo, whi, in_band, floor,
+                ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin, out_comp):
+    """`posterior._tail_pass`: where due is 1 and the pixel's P(not lit) = lookup[bin of its gain]
+    is below 1/2, `_tail_mass` scaled by in_band is added to its far and every and out_comp =
+    far / (1 + every) again; where P(not lit) >= 1/2 (or the gain is not finite) P(wrong) >= 1/2
+    whatever the tail adds, and it is left out as on the CPU.  cand: the posterior's candidates."""
+    buf = cuda.local.array(MAX_M, np.float64)
+    xs = cuda.local.array(MAX_M, np.float64)
+    dn = cuda.local.array(MAX_N, np.float64)
+    ds = cuda.local.array(MAX_N, np.float64)
+    dq = cuda.local.array(MAX_N, np.float64)
+    delta = cuda.local.array(MAX_M, np.float64)
+    sorted_d = cuda.local.array(MAX_N, np.float64)
+    rk = cuda.local.array(3, np.int32)
+    n = frames.shape[0]
+    yy, xx, inside = pixel_of(cuda.grid(1), frames.shape[1], frames.shape[2])
+    if not inside or due[yy, xx] == 0:
+        return
+    g = gain[yy, xx]
+    if not math.isfinite(g) or lookup[_gain_bin(g, bin_width, nb)] >= 0.5:
+        return
+    ns = 2 * n if has_inv else n
+    _load(frames, inverse, ns, n, white, black, scale, yy, xx, buf)
+    for k in range(3):
+        rk[k] = cand[yy, xx, k]
+    f = far[yy, xx]
+    e = every[yy, xx]
+    enough = (1.0 + e - mul64(2.0, f)) / in_band  # P(confused) 1/2 (`posterior._tail_pass`)
+    t = mul64(in_band, _tail_mass(buf, xs, rk, lbest[yy, xx], 3, ns, nbits, xtab, a, beta, packed, flips, flip_bits,
+                                  flip_w, tail_weight, wlo, whi, floor, ptab, pu0, pdu, pw0, pdw, pout, use_prior,
+                                  pmin, enough, dn, ds, dq, delta, sorted_d))
+    f += t
+    e += t
+    out_comp[yy, xx] = f / (1.0 + e)
 
 
 @cuda.jit
