@@ -6,7 +6,9 @@ Two scene generators (`edge.sim`'s flying scene, 12-bit, sigma_s 0.04; the tests
 plane / box / sphere renderer, 12-bit), fixed total exposure (every frame at T / n), ambient 0.5 /
 1 / 2 x the projector.  Prints the error rate (wrong or invalid, over lit pixels) of gray-10 and
 ecc-15/22/31/63-10 decoded with the defaults, and the ratio to gray-10; the same for ecc-22-10
-with the spatial methods (list, median, sgm); and the reliability table of P(wrong) (predicted vs observed rate of
+with the spatial methods (list, median, sgm); where gray-10's and ecc-22-10's errors are (published
+with a wrong column, or unpublished with the top-1 column right, one row off or further off);
+and the reliability table of P(wrong) (predicted vs observed rate of
 columns more than one row off, per bin) on both generators, and on the real OpenCV capture
 (../shared/data/procam-graycode, where present) the coverage and 7x7-median outlier rate of
 `validity="error"` with and without its inverse frames (its 7x7-median outliers of the top-1
@@ -55,6 +57,21 @@ def pbs_capture(code, ratio, seed, size):
     return f, w, b, 12, col, np.ones(col.shape, bool)
 
 
+#: The codes whose errors `error_kinds` splits up.
+COMPOSITION = ("gray-10", "ecc-22-10")
+
+
+def error_kinds(column: np.ndarray, valid: np.ndarray, top: np.ndarray, truth_col: np.ndarray,
+                lit: np.ndarray) -> np.ndarray:
+    """(4,) int64 counts of the lit pixels that count as errors: published with a column other
+    than the true one; unpublished with the best candidate (top, (H, W) int) equal to the true
+    column, one row off, further off (or none).  Their sum is the error rate's numerator."""
+    off = ~valid & lit
+    dist = np.abs(top.astype(np.int64) - truth_col)
+    return np.array([int((valid & (column != truth_col) & lit).sum()), int((off & (dist == 0)).sum()),
+                     int((off & (dist == 1)).sum()), int((off & ((dist > 1) | (top < 0))).sum())], np.int64)
+
+
 REAL = ROOT / ".." / "shared" / "data" / "procam-graycode" / "capture_0"
 
 
@@ -87,11 +104,13 @@ def main(argv: list[str] | None = None) -> int:
     curves: dict[str, dict[str, list]] = {}
     for gen_name, gen in (("edge.sim", sim_capture), ("plane-box-sphere", pbs_capture)):
         pred, obs = {c: [] for c in CODES}, {c: [] for c in CODES}
+        parts: list[str] = []
         say(f"\n## {gen_name}: error rate with defaults (wrong or invalid), ratio to gray-10\n")
         say("| ambient | " + " | ".join(CODES) + " | " + " | ".join(f"ecc-22-10 {m}" for m in SPATIAL) + " |")
         say("|---" * (len(CODES) + len(SPATIAL) + 1) + "|")
         for ratio in RATIOS:
             err = {}
+            kinds = {c: np.zeros(4, np.int64) for c in COMPOSITION}
             for name in CODES + SPATIAL:
                 code = get_code(name if name in CODES else "ecc-22-10")
                 method = "soft" if name in CODES else name
@@ -101,6 +120,8 @@ def main(argv: list[str] | None = None) -> int:
                     d = decode(f, w, b, code, bit_depth=bd, method=method)
                     e_sum += int((((d.column != col) | ~d.valid) & lit).sum())
                     n_sum += int(lit.sum())
+                    if name in COMPOSITION:
+                        kinds[name] += error_kinds(d.column, d.valid, d.candidates[..., 0], col, lit)
                     if name in CODES:
                         pred[name].append(d.error[lit])
                         obs[name].append((np.abs(d.candidates[..., 0] - col) > 1)[lit])
@@ -109,6 +130,16 @@ def main(argv: list[str] | None = None) -> int:
             cells = [f"{err[c]:.4f}" + ("" if c == "gray-10" else f" ({g / max(err[c], 1e-9):.1f}x)") for c in CODES]
             cells += [f"{err[m]:.4f} ({err['ecc-22-10'] / max(err[m], 1e-9):.1f}x soft)" for m in SPATIAL]
             say(f"| {ratio} | " + " | ".join(cells) + " |")
+            lit_total = n_sum
+            parts += [f"| {ratio} | {c} | {err[c]:.4f} | " + " | ".join(f"{k / lit_total:.4f}" for k in kinds[c]) + " |"
+                      for c in COMPOSITION]
+        say(f"\n{gen_name}: where the errors are (shares of the lit pixels; unpublished = P(wrong) >= "
+            "max_error)\n")
+        say("| ambient | code | error rate | published, wrong | unpublished, top-1 right | "
+            "unpublished, top-1 one row off | unpublished, top-1 further off |")
+        say("|---|---|---|---|---|---|---|")
+        for row in parts:
+            say(row)
         say(f"\n{gen_name}: P(wrong) predicted / observed (column more than one row off), per bin "
             "(pixels), all ambient levels\n")
         curves[gen_name] = {}
