@@ -260,11 +260,40 @@ def test_noise_fit_recovers_the_camera():
     f, w, b, bd, col, lit = _sim(ECC, 1.0)
     d = decode(f, w, b, ECC, bit_depth=bd)
     assert d.stats["noise_fitted"] and d.error is not None
-    # the simulator's shot-noise coefficient sigma_s**2 = 0.0016 (read noise 4e-6 is below the fit's reach)
+    # the simulator's shot-noise coefficient sigma_s**2 = 0.0016 and read-noise variance 4e-6
+    # (measured 1.58e-3 and 3.95e-6; before the fit left the unlit pixels out, a sat at its floor)
     assert d.stats["noise_beta"] == pytest.approx(0.04 ** 2, rel=0.15)
+    assert 0.002 ** 2 / 3 <= d.stats["noise_a"] <= 3 * 0.002 ** 2
     scale = 1 / 4095
     n = fit_noise(f, w, b, scale, ECC, np.full(w.shape, -1, np.int32), prior=(0.01, 0.03))
     assert not n.fitted and n.beta == pytest.approx(0.03 ** 2)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_noise_fit_leaves_out_pixels_the_pattern_does_not_reach(seed):
+    """A third of the pixels in shadow (ambient only): their best candidates fit their noise, so
+    their residuals understate it, and a fit over all pixels puts the read noise at its floor
+    and overstates the shot noise; `lit_noise` (decode's fit) leaves them out and recovers both
+    (measured: a 5.9-8.6e-6 for 4e-6, beta -5 %; all pixels: a at the floor, beta +17 %)."""
+    from edge.decode import posterior as P
+    from edge.decode.synthetic import make_capture
+
+    rng = np.random.default_rng(seed)
+    h, w = 120, 160
+    cols = np.clip(np.arange(w)[None, :] + rng.integers(0, 4, (h, w)), 0, ECC.size - 1)
+    albedo = rng.uniform(0.02, 0.3, (h, w))
+    albedo[:, :48] = 0.0
+    cap = make_capture(ECC, cols, rng=rng, albedo=albedo, ambient=0.05, sigma_r=0.002, sigma_s=0.04,
+                       dtype=np.uint16, bit_depth=12)
+    d = decode(cap.frames, cap.white, cap.black, ECC, bit_depth=12)
+    a, beta = 0.002 ** 2, 0.04 ** 2
+    assert a / 3 <= d.stats["noise_a"] <= 3 * a and d.stats["noise_beta"] == pytest.approx(beta, rel=0.1)
+    samples = P._samples(cap.frames, None)
+    s2, mu, fb, fc = (np.empty((h, w)) for _ in range(4))
+    P._fit_stats(samples, cap.white, cap.black, np.float64(1 / 4095), P._xtab(ECC, False),
+                 np.ascontiguousarray(d.candidates[..., 0]), 1, 1, s2, mu, fb, fc)
+    every = P._noise_from(s2, mu, samples, 1 / 4095, (0.01, 0.03))
+    assert every.a < a / 10 and every.beta > 1.1 * beta  # what the shadows did to the fit
 
 
 def _sim_qary(code, sigma_s: float, *, seed: int = 0):

@@ -21,8 +21,11 @@ Three pure steps over numpy arrays (numba kernels, one pass over the pixels each
    with a sample at 0 or at full scale are left out: clipping censors their residuals).  The noise
    model ``var(I) = a + beta * I`` (read + shot noise) is fitted to the per-bin medians of
    ``s2`` over 16 quantile bins of ``mu`` (medians, so wrongly decoded pixels do not inflate it;
-   each divided by the median of chi2_(m-2) / (m-2)), by least squares, with ``a`` floored at the
-   quantisation variance ``(scale**2) / 12`` of integer frames.  The settings' sigma_r / sigma_s are the prior:
+   each divided by the median of chi2_(m-2) / (m-2)), by least squares weighted by sqrt(pixels)
+   / variance (a median's standard error is proportional to the variance), with ``a`` floored at
+   the quantisation variance ``(scale**2) / 12`` of integer frames.  Pixels the pattern does not
+   reach are then left out and the model fitted again (`lit_noise`): their best candidate fits
+   their noise, so their residual variance is biased low.  The settings' sigma_r / sigma_s are the prior:
    they are used where fewer than `MIN_FIT_PIXELS` pixels are decoded.  The same pixels' levels
    (b, c) give the capture's level prior (`edge.decode.level_prior`), in ``Noise.levels``.
 
@@ -103,6 +106,11 @@ SPLIT_ITERATIONS = 4
 FIT_PIXELS = 40000
 #: Quantile bins of the mean level in `fit_noise`.
 NOISE_BINS = 16
+#: `fit_noise` keeps the pixels whose contrast gain a pixel the pattern does not light reaches
+#: with at most this probability (the not-lit test's null law, `_null`).
+FIT_NULL_LEVEL = 1e-3
+#: Rounds of that selection at most (each with the model of the round before).
+FIT_ROUNDS = 2
 #: Largest log-odds exponent evaluated (exp(-x/2) below e**-350 is 0 in float64 anyway).
 _CLIP = 700.0
 #: Pixels of one row `_posterior` and `_split_levels` process together (consecutive x), a
@@ -448,7 +456,52 @@ def fit_noise(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     xtab = _xtab(code, inverse is not None)
     _fit_stats(samples, white, black, np.float64(scale), xtab,
                np.ascontiguousarray(best, np.int32), sy, sx, s2, mu, fb, fc)
-    return _noise_from(s2, mu, samples, scale, prior)._replace(levels=level_prior(fb, fc))
+    return lit_noise(s2, mu, fb, fc, samples, scale, prior, code, inverse is not None)._replace(
+        levels=level_prior(fb, fc))
+
+
+def lit_noise(s2: np.ndarray, mu: np.ndarray, fb: np.ndarray, fc: np.ndarray, frames: np.ndarray, scale: float,
+              prior: tuple[float, float], code: Code, inverse: bool) -> Noise:
+    """Step 2's noise model from the fit pixels' residual variances ``s2``, mean levels ``mu``
+    and best-candidate levels ``fb`` / ``fc`` (arrays of one shape, NaN = no candidate), fitted
+    on the pixels the pattern visibly lights (both backends call this on the host).
+
+    A pixel the pattern does not reach (shadow, outside the projector) still has a best
+    candidate, the one that fits its noise best, so its residual variance is biased low (about
+    0.6 of the true one on edge.sim's shadows), and shadows sit at ambient-only levels, where
+    they tilt the line ``a + beta * I`` and push ``a`` to its floor.  So: the fit of all pixels
+    (`_noise_from`), then, under that model, each pixel's contrast gain ``m (mu - b)(b + c - mu)
+    / v(mu)`` (the least-squares fit's ``c**2 S_xx / v``, exact for binary codes, an upper bound
+    for q-ary ones), and the fit again on the pixels whose gain an unlit pixel reaches with
+    probability at most `FIT_NULL_LEVEL` (the null law of the not-lit test over all codebook
+    rows, `_null`), at most `FIT_ROUNDS` times or until the selection repeats.  Too few pixels
+    left: the fit of all pixels.  frames: (m - 2, ...) the samples' frames (dtype and count);
+    inverse: whether the samples include inverse frames."""
+    s2, mu, fb, fc = (np.asarray(v, np.float64) for v in _fit_sample(s2, mu, fb, fc))
+    ok = np.flatnonzero(np.isfinite(s2))
+    by_level = ok[stable_order(mu[ok])]  # sorted once; a selection of it stays sorted
+    noise = _binned_fit(mu[by_level], s2[by_level], frames, scale, prior)
+    if not noise.fitted:
+        return noise
+    _sample, xq, slope = _null(code, code.size, inverse)
+    threshold = xq + np.log((1.0 - NULL_TAIL_QUANTILE) / FIT_NULL_LEVEL) / slope
+    m = frames.shape[0] + 2
+    mu_s, b_s, c_s = mu[by_level], fb[by_level], fc[by_level]
+    finite = np.isfinite(mu_s) & np.isfinite(b_s) & np.isfinite(c_s)
+    kept = None
+    for _ in range(FIT_ROUNDS):
+        v = noise.a + noise.beta * np.maximum(mu_s, 0.0)
+        with np.errstate(invalid="ignore"):
+            gain = np.where(finite, m * (mu_s - b_s) * (b_s + c_s - mu_s) / v, -np.inf)
+        keep = gain > threshold
+        if kept is not None and np.array_equal(keep, kept):
+            break
+        sel = by_level[keep]
+        refit = _binned_fit(mu[sel], s2[sel], frames, scale, prior)
+        if not refit.fitted:
+            break
+        noise, kept = refit, keep
+    return noise
 
 
 def _steps(h: int, w: int) -> tuple[int, int]:
@@ -464,24 +517,35 @@ def _steps(h: int, w: int) -> tuple[int, int]:
     return sy, sx
 
 
+def _fit_sample(*arrays: np.ndarray) -> list[np.ndarray]:
+    """The pixels `_noise_from` fits, raveled: larger than `FIT_PIXELS`, every step-th pixel
+    (row-major; the CUDA backend downloads exactly that subsample)."""
+    out = [np.ravel(v) for v in arrays]
+    if out[0].size > FIT_PIXELS:  # a regular subsample (deterministic), as `_steps`
+        step = -(-out[0].size // FIT_PIXELS)
+        out = [v[::step] for v in out]
+    return out
+
+
 def _noise_from(s2: np.ndarray, mu: np.ndarray, frames: np.ndarray, scale: float, prior: tuple[float, float]) -> Noise:
     """The binned-median fit of `fit_noise` from per-pixel residual variances `s2` (NaN = none)
-    at mean levels `mu`.  Larger than `FIT_PIXELS`: every step-th pixel (row-major), then the
-    finite ones (the CUDA backend downloads exactly that subsample)."""
-    s2, mu = np.ravel(s2), np.ravel(mu)
-    if s2.size > FIT_PIXELS:  # a regular subsample (deterministic), as `_steps`
-        step = -(-s2.size // FIT_PIXELS)
-        s2, mu = s2[::step], mu[::step]
-    ok = np.isfinite(s2)
+    at mean levels `mu` (`_fit_sample`'s pixels, the finite ones)."""
+    s2, mu = _fit_sample(s2, mu)
+    ok = np.flatnonzero(np.isfinite(s2))
+    by_level = ok[stable_order(mu[ok])]
+    return _binned_fit(mu[by_level], s2[by_level], frames, scale, prior)
+
+
+def _binned_fit(muv: np.ndarray, s2v: np.ndarray, frames: np.ndarray, scale: float,
+                prior: tuple[float, float]) -> Noise:
+    """`_noise_from`'s fit of the finite pixels' mean levels / residual variances, sorted by level
+    (stably: equal levels in pixel order)."""
     # variance floor: the quantisation step's (integer frames), else a tiny positive number
     floor = float(scale) ** 2 / 12.0 if np.issubdtype(frames.dtype, np.integer) else 1e-12
-    prior_noise = Noise(max(float(prior[0]) ** 2, floor), float(prior[1]) ** 2, False, int(ok.sum()))
-    if ok.sum() < MIN_FIT_PIXELS:
+    prior_noise = Noise(max(float(prior[0]) ** 2, floor), float(prior[1]) ** 2, False, int(muv.size))
+    if muv.size < MIN_FIT_PIXELS:
         return prior_noise
-    s2v, muv = s2[ok], mu[ok]
-    # NOISE_BINS equal-count bins of the mean level (its quantile bins): one sort, medians per slice
-    order = stable_order(muv)
-    muv, s2v = muv[order], s2v[order]
+    # NOISE_BINS equal-count bins of the mean level (its quantile bins), medians per slice
     corr = _chi2_median_ratio(frames.shape[0])
     xs, ys, ws = [], [], []
     for chunk in np.array_split(np.arange(muv.size), NOISE_BINS):
@@ -492,13 +556,22 @@ def _noise_from(s2: np.ndarray, mu: np.ndarray, frames: np.ndarray, scale: float
             ws.append(float(hi - lo))
     if len(xs) < 2:
         return prior_noise
-    x, y, wt = np.array(xs), np.array(ys), np.sqrt(np.array(ws))
+    x, y, count = np.array(xs), np.array(ys), np.array(ws)
     if np.ptp(x) <= 1e-9:
-        return Noise(max(float(np.median(y)), floor), 0.0, True, int(ok.sum()))
-    a, beta = np.linalg.lstsq(np.stack([np.ones_like(x), x], 1) * wt[:, None], y * wt, rcond=None)[0]
+        return Noise(max(float(np.median(y)), floor), 0.0, True, int(muv.size))
+    # weighted least squares: a bin's median has a standard error proportional to the variance
+    # itself over sqrt(pixels), so each bin is weighed by sqrt(pixels) / variance (first the
+    # measured one, then, once, the fitted line's: where the variance spans decades, an unweighted
+    # fit lets the bright bins' 1 % scatter set the read-noise intercept)
+    design = np.stack([np.ones_like(x), x], 1)
+    scale_y = np.maximum(y, floor)
+    for _ in range(2):
+        wt = np.sqrt(count) / scale_y
+        a, beta = np.linalg.lstsq(design * wt[:, None], y * wt, rcond=None)[0]
+        scale_y = np.maximum(a + beta * x, np.maximum(y, floor) * 0.5)
     if beta < 0.0:  # no shot-noise term visible: constant variance
         a, beta = float(np.median(y)), 0.0
-    return Noise(max(float(a), floor), float(beta), True, int(ok.sum()))
+    return Noise(max(float(a), floor), float(beta), True, int(muv.size))
 
 
 @njit(cache=True, inline="always")

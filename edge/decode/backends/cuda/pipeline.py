@@ -161,7 +161,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     from ...decoder import band_choices
     from ...level_prior import kernel_args, level_prior
     from ...posterior import (FIT_PIXELS, GAIN_BIN, SKIP_MARGIN, SPLIT_ITERATIONS, TAIL_FLOOR, _noise_from, _steps,
-                              fdr_lookup, gain_bins)
+                              fdr_lookup, gain_bins, lit_noise)
 
     h, w = ds.shape
     n = int(ds.frames.shape[0])
@@ -209,9 +209,10 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     fc = buffer(buffers, "fit_c", (rows, cols), np.float64, stream)
     post_k.fit_stats[_blocks(rows * cols, post_k.TPB), post_k.TPB, stream](
         ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], cand, sy, sx, fs2, fmu, fb, fc)
-    noise = _noise_from(_fetch("fit_s2", fs2, stream, side), _fetch("fit_mu", fmu, stream, side), like,
-                        float(scale), (s.sigma_r, s.sigma_s))
-    noise = noise._replace(levels=level_prior(_fetch("fit_b", fb, stream, side), _fetch("fit_c", fc, stream, side)))
+    host_b, host_c = _fetch("fit_b", fb, stream, side), _fetch("fit_c", fc, stream, side)
+    noise = lit_noise(_fetch("fit_s2", fs2, stream, side), _fetch("fit_mu", fmu, stream, side), host_b, host_c, like,
+                      float(scale), (s.sigma_r, s.sigma_s), code, ds.has_inv)
+    noise = noise._replace(levels=level_prior(host_b, host_c))
     ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin = kernel_args(noise.levels)
     choices = band_choices(columns, band, stripe)
     pc = buffer(buffers, "post_candidates", (h, w, 3), np.int32, stream)
