@@ -478,8 +478,7 @@ def lit_noise(s2: np.ndarray, mu: np.ndarray, fb: np.ndarray, fc: np.ndarray, fr
     left: the fit of all pixels.  frames: (m - 2, ...) the samples' frames (dtype and count);
     inverse: whether the samples include inverse frames."""
     s2, mu, fb, fc = (np.asarray(v, np.float64) for v in _fit_sample(s2, mu, fb, fc))
-    ok = np.flatnonzero(np.isfinite(s2))
-    by_level = ok[stable_order(mu[ok])]  # sorted once; a selection of it stays sorted
+    by_level = _level_order(s2, mu)  # sorted once; a selection of it stays sorted
     noise = _binned_fit(mu[by_level], s2[by_level], frames, scale, prior)
     if not noise.fitted:
         return noise
@@ -531,9 +530,15 @@ def _noise_from(s2: np.ndarray, mu: np.ndarray, frames: np.ndarray, scale: float
     """The binned-median fit of `fit_noise` from per-pixel residual variances `s2` (NaN = none)
     at mean levels `mu` (`_fit_sample`'s pixels, the finite ones)."""
     s2, mu = _fit_sample(s2, mu)
-    ok = np.flatnonzero(np.isfinite(s2))
-    by_level = ok[stable_order(mu[ok])]
+    by_level = _level_order(s2, mu)
     return _binned_fit(mu[by_level], s2[by_level], frames, scale, prior)
+
+
+def _level_order(s2: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """int64 indices of the pixels with a finite ``s2`` (1-d arrays), by mean level ``mu``
+    ascending, equal levels in pixel order (`stable_order`)."""
+    ok = np.flatnonzero(np.isfinite(s2))
+    return ok[stable_order(mu[ok])]
 
 
 def _binned_fit(muv: np.ndarray, s2v: np.ndarray, frames: np.ndarray, scale: float,

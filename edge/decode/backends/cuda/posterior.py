@@ -495,6 +495,15 @@ def _gain_bin(g, bin_width, nb):
     return np.int64(q)
 
 
+@cuda.jit(device=True)
+def _not_lit(g, lookup, bin_width, nb):
+    """P(not lit) of a pixel with gain g: lookup[bin of g] (`posterior.fdr_lookup`), 1 where g is
+    not finite (no candidate)."""
+    if not math.isfinite(g):
+        return 1.0
+    return lookup[_gain_bin(g, bin_width, nb)]
+
+
 @cuda.jit
 def gain_histogram(gain, bin_width, nb, median, counts):
     """counts (nb + 2,) int64: [0..nb-1] finite gains per bin (`posterior.gain_bins`; bin nb is not
@@ -533,8 +542,7 @@ def tail_kernel(frames, inverse, has_inv, white, black, scale, xtab, nbits, cand
     yy, xx, inside = pixel_of(cuda.grid(1), frames.shape[1], frames.shape[2])
     if not inside or due[yy, xx] == 0:
         return
-    g = gain[yy, xx]
-    if not math.isfinite(g) or lookup[_gain_bin(g, bin_width, nb)] >= 0.5:
+    if _not_lit(gain[yy, xx], lookup, bin_width, nb) >= 0.5:
         return
     ns = 2 * n if has_inv else n
     _load(frames, inverse, ns, n, white, black, scale, yy, xx, buf)
@@ -559,11 +567,7 @@ def error_valid(gain, comp, cand, lookup, bin_width, nb, max_error, out_err, out
     yy, xx, inside = pixel_of(cuda.grid(1), gain.shape[0], gain.shape[1])
     if not inside:
         return
-    g = gain[yy, xx]
-    e = 1.0
-    if math.isfinite(g):
-        dark = lookup[_gain_bin(g, bin_width, nb)]
-        e = 1.0 - mul64(1.0 - dark, 1.0 - comp[yy, xx])
+    e = 1.0 - mul64(1.0 - _not_lit(gain[yy, xx], lookup, bin_width, nb), 1.0 - comp[yy, xx])
     err = np.float32(e)
     c = cand[yy, xx, 0]
     ok = err < max_error and c >= 0
