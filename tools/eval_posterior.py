@@ -8,7 +8,7 @@ plane / box / sphere renderer, 12-bit), fixed total exposure (every frame at T /
 ecc-15/22/31/63-10 decoded with the defaults, and the ratio to gray-10; the same for ecc-22-10
 with the spatial methods (list, median, sgm); where gray-10's and ecc-22-10's errors are (published
 with a wrong column, or unpublished with the top-1 column right, one row off or further off);
-and the reliability table of P(wrong) (predicted vs observed rate of
+the noise model each decode fitted; and the reliability table of P(wrong) (predicted vs observed rate of
 columns more than one row off, per bin) on both generators, and on the real OpenCV capture
 (../shared/data/procam-graycode, where present) the coverage and 7x7-median outlier rate of
 `validity="error"` with and without its inverse frames (its 7x7-median outliers of the top-1
@@ -42,10 +42,14 @@ SPATIAL = ("list", "median", "sgm")
 BINS = (0.0005, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
 
 
+#: edge.sim's camera noise in `sim_capture`: (sigma_r, sigma_s); its variance is sigma_r**2 + sigma_s**2 * I.
+SIM_SIGMAS = (0.002, 0.04)
+
+
 def sim_capture(code, ratio, seed, size):
     scene = make_scene("flying", size[0], size[1], seed=seed)
     a = 0.8 * ratio / (1 + ratio)
-    cam = CameraModel(bits=12, sigma_r=0.002, sigma_s=0.04, ambient=a, projector=0.8 - a)
+    cam = CameraModel(bits=12, sigma_r=SIM_SIGMAS[0], sigma_s=SIM_SIGMAS[1], ambient=a, projector=0.8 - a)
     cap = capture_code(scene, code, cam, rng=np.random.default_rng([seed, 7]))
     col, lit = truth(scene)
     return cap.frames, cap.white, cap.black, 12, col, lit
@@ -105,12 +109,14 @@ def main(argv: list[str] | None = None) -> int:
     for gen_name, gen in (("edge.sim", sim_capture), ("plane-box-sphere", pbs_capture)):
         pred, obs = {c: [] for c in CODES}, {c: [] for c in CODES}
         parts: list[str] = []
+        fits: list[str] = []
         say(f"\n## {gen_name}: error rate with defaults (wrong or invalid), ratio to gray-10\n")
         say("| ambient | " + " | ".join(CODES) + " | " + " | ".join(f"ecc-22-10 {m}" for m in SPATIAL) + " |")
         say("|---" * (len(CODES) + len(SPATIAL) + 1) + "|")
         for ratio in RATIOS:
             err = {}
             kinds = {c: np.zeros(4, np.int64) for c in COMPOSITION}
+            noise = {c: [] for c in CODES}
             for name in CODES + SPATIAL:
                 code = get_code(name if name in CODES else "ecc-22-10")
                 method = "soft" if name in CODES else name
@@ -123,6 +129,7 @@ def main(argv: list[str] | None = None) -> int:
                     if name in COMPOSITION:
                         kinds[name] += error_kinds(d.column, d.valid, d.candidates[..., 0], col, lit)
                     if name in CODES:
+                        noise[name].append((d.stats["noise_a"], d.stats["noise_beta"]))
                         pred[name].append(d.error[lit])
                         obs[name].append((np.abs(d.candidates[..., 0] - col) > 1)[lit])
                 err[name] = e_sum / n_sum
@@ -131,6 +138,9 @@ def main(argv: list[str] | None = None) -> int:
             cells += [f"{err[m]:.4f} ({err['ecc-22-10'] / max(err[m], 1e-9):.1f}x soft)" for m in SPATIAL]
             say(f"| {ratio} | " + " | ".join(cells) + " |")
             lit_total = n_sum
+            fits.append(f"| {ratio} | " + " | ".join(
+                f"{min(v[0] for v in noise[c]):.1e}-{max(v[0] for v in noise[c]):.1e} / "
+                f"{min(v[1] for v in noise[c]):.2e}-{max(v[1] for v in noise[c]):.2e}" for c in CODES) + " |")
             parts += [f"| {ratio} | {c} | {err[c]:.4f} | " + " | ".join(f"{k / lit_total:.4f}" for k in kinds[c]) + " |"
                       for c in COMPOSITION]
         say(f"\n{gen_name}: where the errors are (shares of the lit pixels; unpublished = P(wrong) >= "
@@ -139,6 +149,12 @@ def main(argv: list[str] | None = None) -> int:
             "unpublished, top-1 one row off | unpublished, top-1 further off |")
         say("|---|---|---|---|---|---|---|")
         for row in parts:
+            say(row)
+        say(f"\n{gen_name}: the fitted noise model, variance a + beta * I (a / beta, least-most over the seeds)"
+            + (f"; the camera's: {SIM_SIGMAS[0] ** 2:.1e} / {SIM_SIGMAS[1] ** 2:.2e}" if gen is sim_capture else "") + "\n")
+        say("| ambient | " + " | ".join(CODES) + " |")
+        say("|---" * (len(CODES) + 1) + "|")
+        for row in fits:
             say(row)
         say(f"\n{gen_name}: P(wrong) predicted / observed (column more than one row off), per bin "
             "(pixels), all ambient levels\n")

@@ -467,9 +467,9 @@ def lit_noise(s2: np.ndarray, mu: np.ndarray, fb: np.ndarray, fc: np.ndarray, fr
     on the pixels the pattern visibly lights (both backends call this on the host).
 
     A pixel the pattern does not reach (shadow, outside the projector) still has a best
-    candidate, the one that fits its noise best, so its residual variance is biased low (about
-    0.6 of the true one on edge.sim's shadows), and shadows sit at ambient-only levels, where
-    they tilt the line ``a + beta * I`` and push ``a`` to its floor.  So: the fit of all pixels
+    candidate, the one that fits its noise best, so its residual variance is biased low, and
+    shadows sit at ambient-only levels, where they tilt the line ``a + beta * I`` and push ``a``
+    to its floor.  So: the fit of all pixels
     (`_noise_from`), then, under that model, each pixel's contrast gain ``m (mu - b)(b + c - mu)
     / v(mu)`` (the least-squares fit's ``c**2 S_xx / v``, exact for binary codes, an upper bound
     for q-ary ones), and the fit again on the pixels whose gain an unlit pixel reaches with
