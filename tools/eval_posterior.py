@@ -8,7 +8,10 @@ plane / box / sphere renderer, 12-bit), fixed total exposure (every frame at T /
 ecc-15/22/31/63-10 decoded with the defaults, and the ratio to gray-10; the same for ecc-22-10
 with the spatial methods (list, median, sgm); where gray-10's and ecc-22-10's errors are (published
 with a wrong column, or unpublished with the top-1 column right, one row off or further off);
-the noise model each decode fitted; and the reliability table of P(wrong) (predicted vs observed rate of
+the noise model each decode fitted; the bound a decoder that knew each pixel's true levels
+would reach (`bound_error`: the same metric and target, the Bayes rule with the true on / off
+levels and the camera's noise, for gray-10 and the ECC codes; beside it the same rule with
+each codeword's own least-squares levels and no level prior); and the reliability table of P(wrong) (predicted vs observed rate of
 columns more than one row off, per bin) on both generators, and on the real OpenCV capture
 (../shared/data/procam-graycode, where present) the coverage and 7x7-median outlier rate of
 `validity="error"` with and without its inverse frames (its 7x7-median outliers of the top-1
@@ -55,11 +58,79 @@ def sim_capture(code, ratio, seed, size):
     return cap.frames, cap.white, cap.black, 12, col, lit
 
 
+def sim_levels(code, ratio, seed, size):
+    """The true (on, off) levels (H, W) of `sim_capture`'s pixels, normalised: its white / black
+    frames rendered without noise at 16 bits."""
+    scene = make_scene("flying", size[0], size[1], seed=seed)
+    a = 0.8 * ratio / (1 + ratio)
+    cam = CameraModel(bits=16, sigma_r=0.0, sigma_s=0.0, ambient=a, projector=0.8 - a)
+    cap = capture_code(scene, code, cam, rng=0)
+    return cap.white / 65535.0, cap.black / 65535.0
+
+
+def pbs_levels(code, ratio, seed, size):
+    """The true (on, off) levels of `pbs_capture`'s pixels (its renderer's noiseless white / black)."""
+    col, albedo = pbs_scene(size[0], size[1], seed=seed + 3)
+    t = 10.0 / code.n
+    return t * albedo * (0.12 + 0.12 * ratio), t * albedo * 0.12 * ratio
+
+
+def bound_costs(samples, on, off, code, noise):
+    """(true, own): (P, N) float64 costs (-2 log-likelihood up to a per-pixel constant) of every
+    codebook row of a binary code for P pixels.  samples: (P, n + 2) normalised, the n code
+    samples then white and black; on / off: (P,) the pixels' true levels; noise: (a, beta) of the
+    variance ``a + beta * I``.  "true": ``sum_i (r_i - mu_i)**2 / v(mu_i) + log v(mu_i)`` with
+    mu_i the true on / off level of the row's symbol; "own": the row's own least-squares on / off
+    levels (the mean of its samples at 1 and at 0; where that puts on below off, one mean of all
+    samples) under the true variances."""
+    a, beta = noise
+    r = np.asarray(samples, np.float64)
+    m = r.shape[1]
+    x = np.concatenate([code.codebook.astype(np.float64), np.ones((code.size, 1)), np.zeros((code.size, 1))], 1)
+    hi, lo = np.asarray(on, np.float64)[:, None], np.asarray(off, np.float64)[:, None]
+    v1, v0 = a + beta * hi, a + beta * lo
+    true = ((r - hi) ** 2 / v1 + np.log(v1) - (r - lo) ** 2 / v0 - np.log(v0)) @ x.T
+    n1 = x.sum(1)
+    s1, q1 = r @ x.T, (r * r) @ x.T
+    st, qt = r.sum(1, keepdims=True), (r * r).sum(1, keepdims=True)
+    own = (q1 - s1 * s1 / n1) / v1 + (qt - q1 - (st - s1) ** 2 / (m - n1)) / v0
+    pooled = (qt - st * st / m) / v0
+    return true, np.where(s1 / n1 < (st - s1) / (m - n1), pooled, own)
+
+
+def bound_error(frames, white, black, bits, on, off, code, col, lit, noise, max_error=0.01):
+    """(error rate with the true levels, error rate with each row's own levels), wrong or
+    unpublished over the lit pixels, of the Bayes rule of a binary code on `bound_costs`: a
+    uniform prior over the codebook rows, P(wrong) = the posterior mass more than one row from
+    the best, published where below max_error.  frames (n, H, W), white / black (H, W) raw at
+    ``bits``; on / off (H, W) true levels, normalised; col (H, W) true rows; lit (H, W) bool;
+    noise (a, beta).  On lit pixels only (the bound's question is the column, not "lit?")."""
+    r = np.concatenate([frames, white[None], black[None]]).astype(np.float64) / float(2 ** bits - 1)
+    samples = r.reshape(r.shape[0], -1).T[lit.ravel()]
+    rows = np.arange(code.size)
+    truth_col = col[lit]
+
+    def rate(cost):
+        best = cost.argmin(1)
+        odds = np.exp(-(cost - cost.min(1, keepdims=True)) / 2)
+        near = np.abs(rows[None, :] - best[:, None]) <= 1
+        p_wrong = 1.0 - (odds * near).sum(1) / odds.sum(1)
+        return float(((p_wrong >= max_error) | (best != truth_col)).mean())
+
+    true, own = bound_costs(samples, on[lit], off[lit], code, noise)
+    return rate(true), rate(own)
+
+
 def pbs_capture(code, ratio, seed, size):
     col, albedo = pbs_scene(size[0], size[1], seed=seed + 3)
     f, w, b = render(code.codebook, col, albedo, ambient=0.12 * ratio, projector=0.12, bits=12, seed=seed + 4)
     return f, w, b, 12, col, np.ones(col.shape, bool)
 
+
+#: The codes `bound_error` is computed for (binary), and both generators' camera noise (a, beta):
+#: edge.sim's `SIM_SIGMAS`, the plane-box-sphere renderer's defaults (read 0.002, shot 0.04).
+BOUND = ("gray-10", "ecc-22-10", "ecc-63-10")
+SIM_NOISE = (SIM_SIGMAS[0] ** 2, SIM_SIGMAS[1] ** 2)
 
 #: The codes whose errors `error_kinds` splits up.
 COMPOSITION = ("gray-10", "ecc-22-10")
@@ -113,9 +184,12 @@ def main(argv: list[str] | None = None) -> int:
         say(f"\n## {gen_name}: error rate with defaults (wrong or invalid), ratio to gray-10\n")
         say("| ambient | " + " | ".join(CODES) + " | " + " | ".join(f"ecc-22-10 {m}" for m in SPATIAL) + " |")
         say("|---" * (len(CODES) + len(SPATIAL) + 1) + "|")
+        bounds: list[str] = []
+        levels_of = sim_levels if gen is sim_capture else pbs_levels
         for ratio in RATIOS:
             err = {}
             kinds = {c: np.zeros(4, np.int64) for c in COMPOSITION}
+            bound = {c: np.zeros(2) for c in BOUND}
             noise = {c: [] for c in CODES}
             for name in CODES + SPATIAL:
                 code = get_code(name if name in CODES else "ecc-22-10")
@@ -128,6 +202,9 @@ def main(argv: list[str] | None = None) -> int:
                     n_sum += int(lit.sum())
                     if name in COMPOSITION:
                         kinds[name] += error_kinds(d.column, d.valid, d.candidates[..., 0], col, lit)
+                    if name in BOUND:
+                        on, off = levels_of(code, ratio, seed, size)
+                        bound[name] += np.array(bound_error(f, w, b, bd, on, off, code, col, lit, SIM_NOISE)) * lit.sum()
                     if name in CODES:
                         noise[name].append((d.stats["noise_a"], d.stats["noise_beta"]))
                         pred[name].append(d.error[lit])
@@ -143,12 +220,24 @@ def main(argv: list[str] | None = None) -> int:
                 f"{min(v[1] for v in noise[c]):.2e}-{max(v[1] for v in noise[c]):.2e}" for c in CODES) + " |")
             parts += [f"| {ratio} | {c} | {err[c]:.4f} | " + " | ".join(f"{k / lit_total:.4f}" for k in kinds[c]) + " |"
                       for c in COMPOSITION]
+            bounds.append(f"| {ratio} | " + " | ".join(
+                f"{err[c]:.4f} / {bound[c][0] / lit_total:.4f} / {bound[c][1] / lit_total:.4f}" for c in BOUND)
+                + " | " + " | ".join(f"{err['gray-10'] / max(err[c], 1e-9):.2f}x / "
+                                     f"{bound['gray-10'][0] / max(bound[c][0], 1e-9):.2f}x / "
+                                     f"{bound['gray-10'][1] / max(bound[c][1], 1e-9):.2f}x" for c in BOUND[1:]) + " |")
         say(f"\n{gen_name}: where the errors are (shares of the lit pixels; unpublished = P(wrong) >= "
             "max_error)\n")
         say("| ambient | code | error rate | published, wrong | unpublished, top-1 right | "
             "unpublished, top-1 one row off | unpublished, top-1 further off |")
         say("|---|---|---|---|---|---|---|")
         for row in parts:
+            say(row)
+        say(f"\n{gen_name}: what knowing the levels is worth (error rate: decode() / the Bayes rule with each "
+            "pixel's true levels and the camera's noise / the same rule with each codeword's own levels and no "
+            "level prior; then the gain over gray-10 of each)\n")
+        say("| ambient | " + " | ".join(BOUND) + " | " + " | ".join(f"{c} gain" for c in BOUND[1:]) + " |")
+        say("|---" * (2 * len(BOUND)) + "|")
+        for row in bounds:
             say(row)
         say(f"\n{gen_name}: the fitted noise model, variance a + beta * I (a / beta, least-most over the seeds)"
             + (f"; the camera's: {SIM_SIGMAS[0] ** 2:.1e} / {SIM_SIGMAS[1] ** 2:.2e}" if gen is sim_capture else "") + "\n")
