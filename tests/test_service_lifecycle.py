@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import threading
 
 import numpy as np
@@ -106,3 +107,44 @@ def test_bad_run_arguments():
     service = Service(profile, SimSensor(profile, max_speed=True), pipeline_factory=NumpyPipeline)
     with pytest.raises(ValueError, match="stacks"):
         service.run(stacks=0)
+
+
+def test_status_reports_the_decoders_fitted_noise_model():
+    """Under the error rule (the test profile's decoder defaults) every result carries the noise
+    model its decode fitted, and the status shows the last one as sigmas: the simulated camera's
+    (sigma_r 0.004, sigma_s 0.015; 8-bit frames, so the fit sees quantisation too; measured
+    0.0038 / 0.0153)."""
+    profile = load_test_profile()
+    sink = Collect()
+    status = Service(profile, SimSensor(profile, max_speed=True), sinks=[sink]).run(stacks=2)
+    assert all(r.noise is not None and r.noise[2] for r in sink.results)
+    noise = status["noise_model"]
+    assert noise["fitted"] and status["noise_fit_fallbacks"] == 0
+    assert 0.004 / 2 < noise["sigma_r"] < 0.004 * 2.5 and 0.015 / 1.5 < noise["sigma_s"] < 0.015 * 1.5
+    assert not [w for w in status["warnings"] if "noise model" in w]
+
+
+def test_noise_fit_fallbacks_are_counted_and_warned_when_they_start():
+    """A decode that could not fit its noise model (the profile's sigmas stood in) is counted per
+    stack, and the first one after a fitted stack adds one warning, not one per stack."""
+    pattern = itertools.cycle([False, False, True, False])
+
+    class Fallback(NumpyPipeline):
+        def decode(self, codes, white, black):
+            out = super().decode(codes, white, black)
+            out.stats = {"noise_a": 1e-4, "noise_beta": 9e-4, "noise_fitted": next(pattern)}
+            return out
+
+    profile = load_test_profile()
+    logged, sink = [], Collect()
+    service = Service(profile, SimSensor(profile, max_speed=True), sinks=[sink], pipeline_factory=Fallback,
+                      log=logged.append)
+    status = service.run(stacks=6)
+    flags = [r.noise[2] for r in sink.results]
+    starts = sum(1 for i, f in enumerate(flags) if not f and (i == 0 or flags[i - 1]))
+    assert len(flags) == 6 and True in flags and starts >= 2
+    assert status["noise_fit_fallbacks"] == flags.count(False)
+    assert status["noise_model"] == {"sigma_r": 0.01, "sigma_s": 0.03, "fitted": flags[-1]}
+    warned = [w for w in status["warnings"] if "noise model could not be fitted" in w]
+    assert len(warned) == starts and "sigma_r = 0.01" in warned[0]
+    assert len([x for x in logged if "noise model could not be fitted" in x]) == starts

@@ -254,12 +254,15 @@ class DepthPipeline:
         error = None
         if getattr(decoded, "error", None) is not None:  # the decoder's P(wrong) of its own columns only
             error = error_image(decoded.error, (depth > 0) & (column == soft_column))
+        fit = getattr(decoded, "stats", None) or {}
+        noise = ((float(fit["noise_a"]), float(fit["noise_beta"]), bool(fit.get("noise_fitted")))
+                 if "noise_a" in fit else None)
         return DepthResult(
             stack=stack.stack, sequence=stack.first_sequence, timestamp_ns=stack.timestamp_ns,
             received_ns=stack.received_ns, depth_mm=depth, confidence=confidence_to_u8(confidence, depth > 0),
             column=column, decode_s=time.perf_counter() - t0, edc_rounds=rounds, extra_frames=tuple(extra),
             edc_round_ms=tuple(round_ms), edc_capture_ms=tuple(capture_ms), stack_frames=len(stack.frames),
-            stats=stats, error=error,
+            stats=stats, error=error, noise=noise,
         )
 
     def adaptive(self, stack, images, column, confidence, masked_capture):

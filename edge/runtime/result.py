@@ -33,7 +33,10 @@ class DepthResult:
     frames of the stack itself.  error: (H, W) float32 the decoder's estimated probability that
     the published column is wrong (`edge.decode.Decoded.error`), NaN where there is no depth or no
     estimate (`edge.runtime.depth.error_image`); None when the pipeline estimates none (the
-    "confidence" validity rule, the dots / line pipelines).
+    "confidence" validity rule, the dots / line pipelines).  noise: the decoder's noise model of
+    this stack under the "error" rule, (a, beta, fitted): variance ``a + beta * I`` in normalised
+    units, fitted False where too few pixels could be fitted and the profile's sigmas were used
+    (`edge.decode.posterior.fit_noise`); None otherwise.
     """
 
     stack: int
@@ -52,6 +55,7 @@ class DepthResult:
     edc_capture_ms: tuple[float, ...] = ()
     stack_frames: int = 0
     error: np.ndarray | None = None
+    noise: tuple[float, float, bool] | None = None
 
     @property
     def frames_per_depth_map(self) -> int:

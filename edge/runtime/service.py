@@ -29,6 +29,7 @@ import numpy as np
 
 from edge.profiles.live import LIVE_TABLES, ConfigRejected  # noqa: F401  (the config-freeze policy; re-exported)
 
+from ..decode.posterior import MIN_FIT_PIXELS
 from ..sensors.base import EndOfStream, Frame, MaskedCapture, Sensor
 from .assembly import StackAssembler
 from .pipelines import make_pipeline
@@ -51,6 +52,7 @@ class ServiceCounters:
     config_updates: int = 0
     config_rejected: int = 0
     stacks_dropped_at_stop: int = 0
+    noise_fit_fallbacks: int = 0  # stacks whose noise model is the profile's sigmas, not a fit
     last_error: str = ""
 
 
@@ -101,6 +103,7 @@ class Service:
         self.last_result: DepthResult | None = None
         self.results_seen = 0
         self.pipeline_stats: dict[str, int] = {}  # sums of every decoded stack's DepthResult.stats
+        self.last_noise: tuple[float, float, bool] | None = None  # the last stack's DepthResult.noise
         self.geometry_source = "profile"  # or "device calibration" (see _use_device_geometry)
         self._last_exposure_us: float | None = None
         self.last_config_change: dict[str, Any] | None = None  # {"time_ns", "keys"} of the last accepted update
@@ -345,6 +348,36 @@ class Service:
             del self.warnings[:-8]
             self.log(f"edge run: warning: {warning}")
 
+    def _noise_status(self) -> dict[str, Any] | None:
+        """The last stack's noise model as sigmas (normalised units: 1 = full scale; variance
+        ``sigma_r**2 + sigma_s**2 * I``) and whether it was fitted; None before one (or under the
+        "confidence" rule)."""
+        if self.last_noise is None:
+            return None
+        a, beta, fitted = self.last_noise
+        return {"sigma_r": round(float(np.sqrt(a)), 6), "sigma_s": round(float(np.sqrt(beta)), 6), "fitted": bool(fitted)}
+
+    def _note_noise(self, result: DepthResult) -> None:
+        """Keep the stack's noise model for the status; count the stacks whose model is the
+        profile's sigmas (the capture could not be fitted) and warn when that starts."""
+        if result.noise is None:
+            return
+        previous = self.last_noise
+        self.last_noise = result.noise
+        if result.noise[2]:
+            return
+        self.counters.noise_fit_fallbacks += 1
+        if previous is None or previous[2]:
+            a, beta = result.noise[0], result.noise[1]
+            warning = (f"decoder: stack {result.stack}: the noise model could not be fitted (fewer than "
+                       f"{MIN_FIT_PIXELS} decoded pixels without a sample at 0 or at full scale) and is the "
+                       f"profile's sigma_r = {np.sqrt(a):.4g}, sigma_s = {np.sqrt(beta):.4g}; a black level that "
+                       f"clips at 0 (no ambient light, no sensor offset) or saturation does this, and the error "
+                       f"rule then publishes by the profile's noise, not the camera's")
+            self.warnings.append(warning)
+            del self.warnings[:-8]
+            self.log(f"edge run: warning: {warning}")
+
     def _deliver(self, result: DepthResult) -> None:
         if result.geometry is None:  # sinks back-project with the geometry that made this depth map
             result = dataclasses.replace(result, geometry=getattr(self.pipeline, "geometry", self.profile.geometry))
@@ -360,6 +393,7 @@ class Service:
                 self.counters.last_error = f"sink: {type(exc).__name__}: {exc}"
         for key, value in result.stats.items():
             self.pipeline_stats[key] = self.pipeline_stats.get(key, 0) + int(value)
+        self._note_noise(result)
         now = time.time_ns()
         self.counters.stacks_published += 1
         self._latency_s.append((now - result.received_ns) / 1e9)
@@ -403,6 +437,8 @@ class Service:
             "decoder": self.profile.decoder.method,
             "code": self.profile.code.name,
             "valid_fraction": round(last.valid_fraction, 4) if last is not None else None,
+            "noise_model": self._noise_status(),
+            "noise_fit_fallbacks": self.counters.noise_fit_fallbacks,
             "decode_errors": self.counters.decode_errors,
             "sink_errors": self.counters.sink_errors,
             "config_updates": self.counters.config_updates,
