@@ -122,6 +122,10 @@ def test_status_reports_the_decoders_fitted_noise_model():
     assert noise["fitted"] and status["noise_fit_fallbacks"] == 0
     assert 0.004 / 2 < noise["sigma_r"] < 0.004 * 2.5 and 0.015 / 1.5 < noise["sigma_s"] < 0.015 * 1.5
     assert not [w for w in status["warnings"] if "noise model" in w]
+    from edge.runtime.console import summary_lines  # what `edge run` prints at the end
+
+    line = [x for x in summary_lines(status) if x.startswith("noise model")]
+    assert len(line) == 1 and "fitted to the capture" in line[0] and "not fitted" not in line[0]
 
 
 def test_noise_fit_fallbacks_are_counted_and_warned_when_they_start():
@@ -148,3 +152,7 @@ def test_noise_fit_fallbacks_are_counted_and_warned_when_they_start():
     warned = [w for w in status["warnings"] if "noise model could not be fitted" in w]
     assert len(warned) == starts and "sigma_r = 0.01" in warned[0]
     assert len([x for x in logged if "noise model could not be fitted" in x]) == starts
+    from edge.runtime.console import summary_lines
+
+    line = [x for x in summary_lines(status) if x.startswith("noise model")][0]
+    assert f"{flags.count(False)} stacks not fitted" in line and "sigma_r 0.01," in line

@@ -70,6 +70,12 @@ def summary_lines(status: dict[str, Any], console: ConsoleSink | None = None) ->
         f"{status['stacks_dropped']} (stale {status['stacks_dropped_stale']}, incomplete "
         f"{status['stacks_dropped_incomplete']}; sequence gaps {status['sequence_gaps']}, out of order "
         f"{status['out_of_order']})")
+    noise = status.get("noise_model")
+    if noise:
+        lines.append(f"noise model (last stack): sigma_r {noise['sigma_r']:.4g}, sigma_s {noise['sigma_s']:.4g} of full "
+                     f"scale, " + ("fitted to the capture" if noise["fitted"] else "the profile's (not fitted)")
+                     + (f"; {status['noise_fit_fallbacks']} stacks not fitted" if status.get("noise_fit_fallbacks")
+                        else ""))
     if status.get("recorder"):
         r = status["recorder"]
         lines.append("recording: " + ", ".join(f"{k} {v}" for k, v in r.items() if v != ""))
