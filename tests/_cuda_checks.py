@@ -214,21 +214,20 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
         d_frames, inv, inverse, d_white, d_black, scale, tb["xtab"], cuda.to_device(cand), cuda.to_device(searched),
         float(P.SKIP_MARGIN), a, beta, tb["nflips"], tb["weight"], float(P.TAIL_FLOOR), d_ptab, pu0, pdu, pw0, pdw,
         pout, use, *out, d_far, d_every, d_lbest, d_due)
-    # the tail pass with P(not lit) = 0 for every finite gain (one bin)
-    post_k.tail_kernel[grid, post_k.TPB](
-        d_frames, inv, inverse, d_white, d_black, scale, tb["xtab"], int(code.n), out[0], d_due, d_far, d_every,
-        d_lbest, out[3], cuda.to_device(np.zeros(2)), 1.0, 1, a, beta, tb["packed"], tb["flips"], tb["flip_bits"],
-        tb["flip_w"], tb["weight"], tb["wlo"], tb["whi"], 1.0, float(P.TAIL_FLOOR), d_ptab, pu0, pdu, pw0, pdw, pout,
-        use, least, out[2])
+    def tail_pass(not_lit, out_comp):
+        """tail_kernel with P(not lit) = not_lit for every finite gain (one bin)."""
+        post_k.tail_kernel[grid, post_k.TPB](
+            d_frames, inv, inverse, d_white, d_black, scale, tb["xtab"], int(code.n), out[0], d_due, d_far, d_every,
+            d_lbest, out[3], cuda.to_device(np.full(2, not_lit)), 1.0, 1, a, beta, tb["packed"], tb["flips"],
+            tb["flip_bits"], tb["flip_w"], tb["weight"], tb["wlo"], tb["whi"], 1.0, float(P.TAIL_FLOOR), d_ptab, pu0,
+            pdu, pw0, pdw, pout, use, least, out_comp)
+
+    tail_pass(0.0, out[2])  # every due pixel's tail, as the CPU's above
     got = [o.copy_to_host() for o in out]
     ok_due = np.array_equal(d_due.copy_to_host(), due)
     # and with P(not lit) = 3/4 for every gain the tail is left out, as on the CPU
     shadow = cuda.to_device(np.full((h, w), -1.0))
-    post_k.tail_kernel[grid, post_k.TPB](
-        d_frames, inv, inverse, d_white, d_black, scale, tb["xtab"], int(code.n), out[0], d_due, d_far, d_every,
-        d_lbest, out[3], cuda.to_device(np.full(2, 0.75)), 1.0, 1, a, beta, tb["packed"], tb["flips"],
-        tb["flip_bits"], tb["flip_w"], tb["weight"], tb["wlo"], tb["whi"], 1.0, float(P.TAIL_FLOOR), d_ptab, pu0,
-        pdu, pw0, pdw, pout, use, least, shadow)
+    tail_pass(0.75, shadow)
     ok_due &= bool((shadow.copy_to_host() == -1.0).all())
     ok = np.array_equal(got[0], ref[0])
     close = [np.allclose(g, r, rtol=ERR_RTOL, atol=ERR_ATOL, equal_nan=True)

@@ -49,11 +49,15 @@ BINS = (0.0005, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
 SIM_SIGMAS = (0.002, 0.04)
 
 
+def sim_camera(ratio):
+    """`sim_capture`'s camera: 12-bit, `SIM_SIGMAS`, ambient = ratio x projector (sum 0.8)."""
+    a = 0.8 * ratio / (1 + ratio)
+    return CameraModel(bits=12, sigma_r=SIM_SIGMAS[0], sigma_s=SIM_SIGMAS[1], ambient=a, projector=0.8 - a)
+
+
 def sim_capture(code, ratio, seed, size):
     scene = make_scene("flying", size[0], size[1], seed=seed)
-    a = 0.8 * ratio / (1 + ratio)
-    cam = CameraModel(bits=12, sigma_r=SIM_SIGMAS[0], sigma_s=SIM_SIGMAS[1], ambient=a, projector=0.8 - a)
-    cap = capture_code(scene, code, cam, rng=np.random.default_rng([seed, 7]))
+    cap = capture_code(scene, code, sim_camera(ratio), rng=np.random.default_rng([seed, 7]))
     col, lit = truth(scene)
     return cap.frames, cap.white, cap.black, 12, col, lit
 
@@ -62,17 +66,8 @@ def sim_levels(code, ratio, seed, size):
     """The true (on, off) levels (H, W) of `sim_capture`'s pixels, normalised: its white / black
     frames rendered without noise at 16 bits."""
     scene = make_scene("flying", size[0], size[1], seed=seed)
-    a = 0.8 * ratio / (1 + ratio)
-    cam = CameraModel(bits=16, sigma_r=0.0, sigma_s=0.0, ambient=a, projector=0.8 - a)
-    cap = capture_code(scene, code, cam, rng=0)
+    cap = capture_code(scene, code, sim_camera(ratio).with_(bits=16, sigma_r=0.0, sigma_s=0.0), rng=0)
     return cap.white / 65535.0, cap.black / 65535.0
-
-
-def pbs_levels(code, ratio, seed, size):
-    """The true (on, off) levels of `pbs_capture`'s pixels (its renderer's noiseless white / black)."""
-    col, albedo = pbs_scene(size[0], size[1], seed=seed + 3)
-    t = 10.0 / code.n
-    return t * albedo * (0.12 + 0.12 * ratio), t * albedo * 0.12 * ratio
 
 
 def bound_costs(samples, on, off, code, noise):
@@ -121,10 +116,19 @@ def bound_error(frames, white, black, bits, on, off, code, col, lit, noise, max_
     return rate(true), rate(own)
 
 
-def pbs_capture(code, ratio, seed, size):
+def pbs_capture(code, ratio, seed, size, **noise):
+    """The plane-box-sphere capture (12-bit); ``noise``: `render`'s read / shot / bits overrides."""
     col, albedo = pbs_scene(size[0], size[1], seed=seed + 3)
-    f, w, b = render(code.codebook, col, albedo, ambient=0.12 * ratio, projector=0.12, bits=12, seed=seed + 4)
+    f, w, b = render(code.codebook, col, albedo, ambient=0.12 * ratio, projector=0.12, seed=seed + 4,
+                     **{"bits": 12, **noise})
     return f, w, b, 12, col, np.ones(col.shape, bool)
+
+
+def pbs_levels(code, ratio, seed, size):
+    """The true (on, off) levels of `pbs_capture`'s pixels: its white / black rendered without
+    noise, as floats."""
+    _, on, off, *_ = pbs_capture(code, ratio, seed, size, read=0.0, shot=0.0, bits=None)
+    return on.astype(np.float64), off.astype(np.float64)
 
 
 #: The codes `bound_error` is computed for (binary), and both generators' camera noise (a, beta):

@@ -470,7 +470,7 @@ def lit_noise(s2: np.ndarray, mu: np.ndarray, fb: np.ndarray, fc: np.ndarray, fr
     candidate, the one that fits its noise best, so its residual variance is biased low, and
     shadows sit at ambient-only levels, where they tilt the line ``a + beta * I`` and push ``a``
     to its floor.  So: the fit of all pixels
-    (`_noise_from`), then, under that model, each pixel's contrast gain ``m (mu - b)(b + c - mu)
+    (`_binned_fit`, as `_noise_from`), then, under that model, each pixel's contrast gain ``m (mu - b)(b + c - mu)
     / v(mu)`` (the least-squares fit's ``c**2 S_xx / v``, exact for binary codes, an upper bound
     for q-ary ones), and the fit again on the pixels whose gain an unlit pixel reaches with
     probability at most `FIT_NULL_LEVEL` (the null law of the not-lit test over all codebook
@@ -485,14 +485,13 @@ def lit_noise(s2: np.ndarray, mu: np.ndarray, fb: np.ndarray, fc: np.ndarray, fr
     _sample, xq, slope = _null(code, code.size, inverse)
     threshold = xq + np.log((1.0 - NULL_TAIL_QUANTILE) / FIT_NULL_LEVEL) / slope
     m = frames.shape[0] + 2
+    # a finite s2 comes with finite levels (`_fit_stats` writes NaN to all four only where there
+    # is no candidate), so every pixel of by_level has a gain
     mu_s, b_s, c_s = mu[by_level], fb[by_level], fc[by_level]
-    finite = np.isfinite(mu_s) & np.isfinite(b_s) & np.isfinite(c_s)
     kept = None
     for _ in range(FIT_ROUNDS):
         v = noise.a + noise.beta * np.maximum(mu_s, 0.0)
-        with np.errstate(invalid="ignore"):
-            gain = np.where(finite, m * (mu_s - b_s) * (b_s + c_s - mu_s) / v, -np.inf)
-        keep = gain > threshold
+        keep = m * (mu_s - b_s) * (b_s + c_s - mu_s) / v > threshold
         if kept is not None and np.array_equal(keep, kept):
             break
         sel = by_level[keep]

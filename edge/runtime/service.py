@@ -344,9 +344,13 @@ class Service:
                        f"{self.profile.camera.rate_hz:g} fps): stacks will be dropped (applied anyway; "
                        f"revert it to keep real time)")
             self.budget["warning"] = warning
-            self.warnings.append(warning)
-            del self.warnings[:-8]
-            self.log(f"edge run: warning: {warning}")
+            self._warn(warning)
+
+    def _warn(self, warning: str) -> None:
+        """A warning for the status (the last 8 are kept) and for stderr."""
+        self.warnings.append(warning)
+        del self.warnings[:-8]
+        self.log(f"edge run: warning: {warning}")
 
     def _noise_status(self) -> dict[str, Any] | None:
         """The last stack's noise model as sigmas (normalised units: 1 = full scale; variance
@@ -374,9 +378,7 @@ class Service:
                        f"profile's sigma_r = {np.sqrt(a):.4g}, sigma_s = {np.sqrt(beta):.4g}; a black level that "
                        f"clips at 0 (no ambient light, no sensor offset) or saturation does this, and the error "
                        f"rule then publishes by the profile's noise, not the camera's")
-            self.warnings.append(warning)
-            del self.warnings[:-8]
-            self.log(f"edge run: warning: {warning}")
+            self._warn(warning)
 
     def _deliver(self, result: DepthResult) -> None:
         if result.geometry is None:  # sinks back-project with the geometry that made this depth map
