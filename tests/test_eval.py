@@ -7,7 +7,7 @@ import pytest
 
 from edge.decode.settings import DEFAULT_SETTINGS, DecodeSettings, from_profile
 from edge.eval.edc import SINGLE_PASS
-from edge.eval.report import markdown_table, profile_sections
+from edge.eval.report import calibration_verdict, markdown_table, poisson_interval, profile_sections
 from edge.eval.sweep import EXPERIMENTS, SweepConfig, configurations
 from edge.profiles import load_profile
 from edge.profiles.files import apply_update
@@ -86,3 +86,29 @@ def test_curtain_demo_cli_runs_the_eval_package(capsys):
     assert [r[0] for r in rows] == ["1/1", "1100/0101", "1100/0101", "1100/0101", "001011/001101/011111"]
     assert float(rows[0][-2]) > 0.1  # uncoded: the second laser's false curtain is detected
     assert all(float(r[-2]) == 0.0 and float(r[-1]) < 0.01 for r in rows[1:])  # coded: none, none missed
+
+
+def test_poisson_interval_matches_closed_forms():
+    """Garwood's interval where it has a closed form: k = 0 (upper -ln(tail)), k = 1 (lower
+    -ln(1 - tail); upper solves e**-mu (1 + mu) = tail), and brackets of the count itself."""
+    from math import exp, log
+
+    low, high = poisson_interval(0, 0.99)
+    assert low == 0.0 and abs(high + log(0.005)) < 1e-9
+    low, high = poisson_interval(1, 0.99)
+    assert abs(low + log(0.995)) < 1e-9
+    assert abs(exp(-high) * (1.0 + high) - 0.005) < 1e-12
+    for k in (3, 15, 100):
+        low, high = poisson_interval(k, 0.95)
+        assert low < k < high
+        assert poisson_interval(k, 0.99)[0] < low and poisson_interval(k, 0.99)[1] > high
+
+
+def test_calibration_verdict():
+    """Within 2x; outside it but not ruled out by a small count; ruled out by a large one."""
+    assert calibration_verdict(10.0, 19) == "within"
+    assert calibration_verdict(10.0, 5) == "within"
+    assert calibration_verdict(3.1, 7) == "consistent"  # 2.3x on 7 errors: 99 % interval 2.0-16.8
+    assert calibration_verdict(2.0, 0) == "consistent"
+    assert calibration_verdict(100.0, 250) == "off"
+    assert calibration_verdict(100.0, 30) == "off"

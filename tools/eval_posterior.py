@@ -11,8 +11,9 @@ with a wrong column, or unpublished with the top-1 column right, one row off or 
 the noise model each decode fitted; the bound a decoder that knew each pixel's true levels
 would reach (`bound_error`: the same metric and target, the Bayes rule with the true on / off
 levels and the camera's noise, for gray-10 and the ECC codes; beside it the same rule with
-each codeword's own least-squares levels and no level prior); and the reliability table of P(wrong) (predicted vs observed rate of
-columns more than one row off, per bin) on both generators, and on the real OpenCV capture
+each codeword's own least-squares levels and no level prior); and the reliability table of P(wrong)
+(predicted vs observed rate of columns more than one row off, per bin, each bin's error count judged against "within 2x" with
+its 99 % Poisson interval, `edge.eval.report.calibration_verdict`) on both generators, and on the real OpenCV capture
 (../shared/data/procam-graycode, where present) the coverage and 7x7-median outlier rate of
 `validity="error"` with and without its inverse frames (its 7x7-median outliers of the top-1
 columns as the observed errors of the reliability table).  Writes README.md and
@@ -35,6 +36,7 @@ sys.path.insert(0, str(ROOT))
 from _plane_box_sphere import render, scene as pbs_scene  # noqa: E402
 from edge.codes import get_code  # noqa: E402
 from edge.decode import decode  # noqa: E402
+from edge.eval.report import calibration_verdict  # noqa: E402
 from edge.sim import CameraModel, capture_code  # noqa: E402
 from edge.sim.metrics import truth  # noqa: E402
 from edge.sim.scenes import make_scene  # noqa: E402
@@ -164,6 +166,26 @@ def reliability(p: np.ndarray, o: np.ndarray) -> list[tuple[float, float, float,
     return out
 
 
+def bin_cells(rel: list[tuple[float, float, float, int]]) -> str:
+    """One reliability line: per bin ``[lo) predicted / observed (pixels), errors seen for
+    expected: verdict`` (`edge.eval.report.calibration_verdict`, within 2x at 99 %)."""
+    cells = []
+    for lo, p, o, k in rel:
+        expected, seen = p * k, int(round(o * k))
+        cells.append(f"[{lo:g}) {p:.4f} / {o:.4f} ({k}), {seen} for {expected:.1f}: {calibration_verdict(expected, seen)}")
+    return " | ".join(cells)
+
+
+def calibration_summary(rels: list[list[tuple[float, float, float, int]]]) -> str:
+    """How many bins from 0.05 % to 20 % (`BINS`) are within 2x of their expected error count,
+    how many only consistent with it at 99 %, and how many off (`bin_cells`)."""
+    verdicts = [calibration_verdict(p * k, int(round(o * k)))
+                for rel in rels for lo, p, o, k in rel if lo < 0.2]
+    return (f"{len(verdicts)} bins from 0.05 % to 20 %: {verdicts.count('within')} within 2x, "
+            f"{verdicts.count('consistent')} consistent with 2x at 99 % on their error count, "
+            f"{verdicts.count('off')} off")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--size", default="160x120", help="scene size WxH (default 160x120)")
@@ -250,12 +272,14 @@ def main(argv: list[str] | None = None) -> int:
         for row in fits:
             say(row)
         say(f"\n{gen_name}: P(wrong) predicted / observed (column more than one row off), per bin "
-            "(pixels), all ambient levels\n")
+            "(pixels), then the bin's errors seen for the count its predictions expect, and the verdict on "
+            "'within 2x' (within; consistent at 99 % on the count; off), all ambient levels\n")
         curves[gen_name] = {}
         for name in CODES:
             rel = reliability(np.concatenate(pred[name]), np.concatenate(obs[name]))
             curves[gen_name][name] = rel
-            say(f"- {name}: " + " | ".join(f"[{lo:g}) {p:.4f} / {o:.4f} ({k})" for lo, p, o, k in rel))
+            say(f"- {name}: " + bin_cells(rel))
+        say(f"\n{gen_name}: {calibration_summary(list(curves[gen_name].values()))}")
     if args.real.is_dir():
         from edge.decode import load_opencv_graycode, spatial_outliers
 
@@ -274,7 +298,9 @@ def main(argv: list[str] | None = None) -> int:
                 curves["real (pattern + inverse)"] = {"gray-10": reliability(d.error.ravel(), o.ravel())}
         rel = curves["real (pattern + inverse)"]["gray-10"]
         say("\nreal: P(wrong) predicted / 7x7-median outlier rate of the top-1 columns, per bin\n")
-        say("- gray-10: " + " | ".join(f"[{lo:g}) {p:.4f} / {o:.4f} ({k})" for lo, p, o, k in rel))
+        say("- gray-10: " + bin_cells(rel))
+        say(f"\nreal: {calibration_summary([rel])} (an outlier of the 7x7 median is not every error: "
+            "a miss its neighbours share is not one)")
     args.out.mkdir(parents=True, exist_ok=True)
     _plot(curves, args.out / "reliability.png")
     (args.out / "README.md").write_text("# The error-probability rule with decode()'s defaults\n\n"
