@@ -156,3 +156,37 @@ def test_noise_fit_fallbacks_are_counted_and_warned_when_they_start():
 
     line = [x for x in summary_lines(status) if x.startswith("noise model")][0]
     assert f"{flags.count(False)} stacks not fitted" in line and "sigma_r 0.01," in line
+
+
+def test_stacks_no_pixel_sees_the_projector_in_are_published_empty():
+    """A covered lens or a projector that is off (white <= black everywhere: `NoPatternContrast`)
+    is a scene, not a fault: the real decoder's pipeline publishes an empty depth map (depth 0,
+    column -1, an all-NaN error image under the error rule) and the service keeps running, past
+    the run of consecutive decode errors that would stop it, and decodes again once the pattern
+    is back; the status counts the stacks and warns once when they begin."""
+    from edge.runtime.pipeline import DepthPipeline
+    from edge.runtime.service import MAX_CONSECUTIVE_DECODE_ERRORS
+
+    dark_stacks = MAX_CONSECUTIVE_DECODE_ERRORS + 1
+    pattern = iter([False] + [True] * dark_stacks + [False])
+
+    class Covered(DepthPipeline):
+        def stacked(self, frames):
+            images = super().stacked(frames)
+            return np.zeros_like(images) if next(pattern) else images
+
+    profile = load_test_profile()
+    logged, sink = [], Collect()
+    service = Service(profile, SimSensor(profile, max_speed=True), sinks=[sink], pipeline_factory=Covered,
+                      log=logged.append)
+    status = service.run(stacks=dark_stacks + 2)
+    assert status["stacks_decoded"] == dark_stacks + 2 and status["decode_errors"] == 0 and not service.fault
+    assert status["stacks_without_contrast"] == dark_stacks
+    dark = sink.results[1:-1]
+    assert all(not r.depth_mm.any() and (r.column == -1).all() and not r.confidence.any() for r in dark)
+    assert all(r.error is not None and np.isnan(r.error).all() for r in dark)
+    for lit in (sink.results[0], sink.results[-1]):
+        assert lit.valid_fraction > 0.5 and lit.error is not None and np.isfinite(lit.error[lit.depth_mm > 0]).all()
+    warned = [w for w in status["warnings"] if "no pixel sees the projector" in w]
+    assert len(warned) == 1 and f"stack {dark[0].stack}:" in warned[0]
+    assert len([x for x in logged if "no pixel sees the projector" in x]) == 1

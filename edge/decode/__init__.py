@@ -3,13 +3,14 @@ filter; EDC error maps; loaders for real capture layouts."""
 
 from .check import check, check_capture, contrast_error_map, error_map
 from .decoder import DEFAULTS, METHODS, Decoded, decode, decode_capture, decode_refined
+from .inputs import NoPatternContrast
 from .layouts import LayoutCapture, decode_axes, load_manifest, load_opencv_graycode
 from .levels import refine_levels
 from .settings import DEFAULT_SETTINGS, DecodeSettings
 from .spatial import confidence_median, order_prior, spatial_outliers
 
 __all__ = [
-    "Decoded", "decode", "DecodeSettings", "DEFAULT_SETTINGS", "decode_refined", "refine_levels", "DEFAULTS", "METHODS", "check",
+    "Decoded", "decode", "NoPatternContrast", "DecodeSettings", "DEFAULT_SETTINGS", "decode_refined", "refine_levels", "DEFAULTS", "METHODS", "check",
     "contrast_error_map", "error_map", "order_prior", "confidence_median", "spatial_outliers", "LayoutCapture", "load_opencv_graycode", "load_manifest", "decode_axes",
     "decode_capture", "check_capture", "LayoutCapture",
 ]

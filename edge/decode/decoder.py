@@ -53,7 +53,7 @@ from ..capture import CodedCapture
 from ..codes import Code
 from .backends import Q_SCALE
 from .backends import get as get_backend
-from .inputs import validate
+from .inputs import NoPatternContrast, validate
 from .levels import estimate_levels
 from .posterior import Noise, fit_noise, normalised32, posterior, split_levels
 from .propagate import propagate
@@ -272,7 +272,7 @@ def split_capture(stack: CodedCapture, on: np.ndarray, off: np.ndarray) -> Coded
     levels on / off.  What `inputs.validate` would return for these arrays (float32 samples of
     a validated integer or float capture are finite and >= 0; its white > black check is kept)."""
     if not np.greater(on, off).any():
-        raise ValueError("white/black: expected white brighter than black somewhere, got white <= black everywhere")
+        raise NoPatternContrast()
     scale = np.float32(stack.scale)
     inv = None if stack.inverse is None else normalised32(stack.inverse, scale)
     return CodedCapture(frames=normalised32(stack.frames, scale), white=np.ascontiguousarray(on),

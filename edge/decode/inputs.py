@@ -1,6 +1,7 @@
 """Validation of decoder inputs: frame stacks, calibration frames, inverse frames.
 
-Every check raises one `ValueError` naming what was expected and what was given. Arrays are
+Every check raises one `ValueError` naming what was expected and what was given (a capture in
+which no pixel sees the projector raises its subclass `NoPatternContrast`). Arrays are
 never copied here (the kernels read uint8 / uint16 / float32 / float64 directly); the only
 product is a `edge.capture.CodedCapture` whose ``scale`` (`edge.capture.full_scale`) maps raw
 values to the normalised range [0, 1].
@@ -12,6 +13,23 @@ import numpy as np
 
 from ..capture import CodedCapture, full_scale
 from ..codes import Code
+
+#: The message of `NoPatternContrast`.
+NO_CONTRAST = ("white/black: expected white brighter than black somewhere, got white <= black everywhere "
+               "(no pixel sees the projector: it is off or blocked, the lens is covered, every pixel is "
+               "saturated, or white and black are swapped)")
+
+
+class NoPatternContrast(ValueError):
+    """A capture whose white frame is nowhere brighter than its black frame: no pixel can be
+    decoded.  A `ValueError` (callers that treat it as bad input still do); the depth service
+    publishes an empty depth map for such a stack instead of counting a decode error
+    (`edge.runtime.pipeline.DepthPipeline.process`), since a covered lens or a projector that is
+    off is a scene, not a fault."""
+
+    def __init__(self, message: str = NO_CONTRAST) -> None:
+        super().__init__(message)
+
 
 _INT_DTYPES = (np.uint8, np.uint16)
 _FLOAT_DTYPES = (np.float32, np.float64)
@@ -72,7 +90,7 @@ def validate(
     if h == 0 or w == 0:
         raise ValueError(f"frames: expected a non-empty image, got shape {frames.shape}")
     if not np.greater(white, black).any():  # one dtype (checked above): compared as is
-        raise ValueError("white/black: expected white brighter than black somewhere, got white <= black everywhere")
+        raise NoPatternContrast()
     # bit_depth counts for uint16 only (uint8 is 8 bits, floats are normalised): one full-scale rule
     depth = None if bit_depth is None or frames.dtype != np.uint16 else int(bit_depth)
     full_scale(frames.dtype, depth)  # raises on a bit_depth outside 1..16

@@ -35,6 +35,7 @@ import numpy as np
 
 from edge.device import DeviceModel
 
+from ..decode.inputs import NoPatternContrast
 from ..sensors.base import Frame
 from .assembly import Stack
 from .depth import column_to_depth_mm, confidence_to_u8, error_image
@@ -229,13 +230,16 @@ class DepthPipeline:
         """Depth for one complete stack (see module docstring)."""
         t0 = time.perf_counter()
         images, stats = None, {}
-        decoded = self.decode_staged_stack(stack) if self.stager is not None else None
-        if decoded is None:
-            images = self.stacked(stack.frames)
-            cap = stack.coded(images, self.n, code=self.code, columns=self.columns, stripe=self.stripe,
-                              bit_depth=self.profile.camera.bits if images.dtype == np.uint16 else None)
-            codes, white, black = cap.frames, cap.white, cap.black
-            decoded = self.decode(codes, white, black)
+        try:
+            decoded = self.decode_staged_stack(stack) if self.stager is not None else None
+            if decoded is None:
+                images = self.stacked(stack.frames)
+                cap = stack.coded(images, self.n, code=self.code, columns=self.columns, stripe=self.stripe,
+                                  bit_depth=self.profile.camera.bits if images.dtype == np.uint16 else None)
+                codes, white, black = cap.frames, cap.white, cap.black
+                decoded = self.decode(codes, white, black)
+        except NoPatternContrast:
+            return self.empty_result(stack, t0)
         if self.stager is not None:  # CUDA: how the stack reached the device (summed in the service status)
             whole = int(images is not None)
             stats = {"gpu_stacks_staged": 1 - whole, "gpu_stacks_uploaded_whole": whole}
@@ -264,6 +268,20 @@ class DepthPipeline:
             edc_round_ms=tuple(round_ms), edc_capture_ms=tuple(capture_ms), stack_frames=len(stack.frames),
             stats=stats, error=error, noise=noise,
         )
+
+    def empty_result(self, stack: Stack, t0: float) -> DepthResult:
+        """The depth map of a stack in which no pixel sees the projector (`NoPatternContrast`: it is
+        off or blocked, the lens is covered, every pixel saturates): every pixel invalid (depth 0,
+        confidence 0, column -1; under the "error" rule an all-NaN error image, so that the error
+        stream has every stack), no EDC round, and ``stats`` counts it as
+        ``stacks_without_contrast`` (the service's status sums it and warns when such stacks begin)."""
+        shape = np.shape(stack.frames[0].image)[:2]
+        error = np.full(shape, np.nan, np.float32) if self.rule == "error" else None
+        return DepthResult(
+            stack=stack.stack, sequence=stack.first_sequence, timestamp_ns=stack.timestamp_ns,
+            received_ns=stack.received_ns, depth_mm=np.zeros(shape, np.uint16), confidence=np.zeros(shape, np.uint8),
+            column=np.full(shape, -1, np.int32), decode_s=time.perf_counter() - t0, stack_frames=len(stack.frames),
+            stats={"stacks_without_contrast": 1}, error=error)
 
     def adaptive(self, stack, images, column, confidence, masked_capture):
         """EDC rounds (`edge.runtime.edc_stage.run_adaptive`) -> `EdcOutcome`."""

@@ -104,6 +104,7 @@ class Service:
         self.results_seen = 0
         self.pipeline_stats: dict[str, int] = {}  # sums of every decoded stack's DepthResult.stats
         self.last_noise: tuple[float, float, bool] | None = None  # the last stack's DepthResult.noise
+        self.without_contrast = False  # whether the last stack was one no pixel saw the projector in
         self.geometry_source = "profile"  # or "device calibration" (see _use_device_geometry)
         self._last_exposure_us: float | None = None
         self.last_config_change: dict[str, Any] | None = None  # {"time_ns", "keys"} of the last accepted update
@@ -380,6 +381,17 @@ class Service:
                        f"rule then publishes by the profile's noise, not the camera's")
             self._warn(warning)
 
+    def _note_contrast(self, result: DepthResult) -> None:
+        """Warn when stacks in which no pixel sees the projector begin (`NoPatternContrast`: the
+        pipeline publishes them as empty depth maps and counts them as ``stacks_without_contrast``);
+        one warning per run of such stacks."""
+        dark = bool(result.stats.get("stacks_without_contrast"))
+        if dark and not self.without_contrast:
+            self._warn(f"decoder: stack {result.stack}: no pixel sees the projector (white <= black everywhere): "
+                       "it is off or blocked, the lens is covered, or every pixel saturates; empty depth maps "
+                       "are published until the pattern is seen again")
+        self.without_contrast = dark
+
     def _deliver(self, result: DepthResult) -> None:
         if result.geometry is None:  # sinks back-project with the geometry that made this depth map
             result = dataclasses.replace(result, geometry=getattr(self.pipeline, "geometry", self.profile.geometry))
@@ -396,6 +408,7 @@ class Service:
         for key, value in result.stats.items():
             self.pipeline_stats[key] = self.pipeline_stats.get(key, 0) + int(value)
         self._note_noise(result)
+        self._note_contrast(result)
         now = time.time_ns()
         self.counters.stacks_published += 1
         self._latency_s.append((now - result.received_ns) / 1e9)
