@@ -65,13 +65,22 @@ def test_coded_capture_fields_and_validation():
         CodedCapture(f, w, b).exposure
     st = validate(f, w, b, code, bit_depth=12)
     assert isinstance(st, CodedCapture) and st.scale == 1.0 / 4095.0
-    assert validate(f, w, b, code).scale == 1.0 / 65535.0
+    assert validate(f, w, b, code).scale == 1.0 / 4095.0  # no bit_depth: detected (largest value 4000: 12 bits)
+    assert validate(f, w * 10, b, code).scale == 1.0 / 65535.0 and validate(f, w // 20, b, code).bit_depth == 8
+    with pytest.raises(ValueError, match="values up to 4000 exceed the full scale 1023 of bit_depth=10"):
+        validate(f, w, b, code, bit_depth=10)
+    for bad in (12.5, "12", True):
+        with pytest.raises(ValueError, match="bit_depth: expected an integer"):
+            validate(f, w, b, code, bit_depth=bad)
+    with pytest.raises(ValueError, match="normalised to"):
+        validate(f.astype(np.float32), w.astype(np.float32), b.astype(np.float32), code)
     assert validate(f.astype(np.uint8), w.astype(np.uint8) // 20, b.astype(np.uint8), code, bit_depth=12).scale == 1 / 255
 
 
 def test_uint16_bit_depth_decodes_like_float():
     """12-bit data in uint16 with bit_depth=12 decodes like the same data as float; without
-    bit_depth the data are read as 16-bit (docstring: default 16), i.e. like the float data / 65535.
+    bit_depth the bit depth is detected from the data (12), so it decodes the same as with it
+    (before, it was read as 16-bit, 16x darker, and the contrast floor left most pixels out).
 
     The service's path: disparity band, uint16 and float32 frames (the kernels the suite compiles
     anyway).  float32 holds raw / 4095 to 2**-24, so a cost may round the other way: "like" is
@@ -100,9 +109,15 @@ def test_uint16_bit_depth_decodes_like_float():
     assert (d12.column == cols)[d12.valid].mean() > 0.99 and d12.valid.mean() > 0.8
     dc = decode_capture(cap, code, **band)  # decode_capture unpacks bit_depth itself
     assert np.array_equal(dc.column, d12.column) and np.array_equal(dc.valid, d12.valid)
-    d16 = decode(*raw, code, **band)  # without bit_depth: 16-bit full scale
-    alike(d16, decode(*as_float(65535.0), code, **band))
-    assert d16.valid.mean() < d12.valid.mean()  # 12-bit data read as 16-bit look 16x darker
+    detected = decode(*raw, code, **band)  # without bit_depth: detected as 12 bits
+    assert np.array_equal(detected.column, d12.column) and np.array_equal(detected.valid, d12.valid)
+    for rule in ({"validity": "confidence"}, {"method": "hard"}):  # the rules with an absolute contrast floor
+        stated, found = decode(*raw, code, bit_depth=12, **rule, **band), decode(*raw, code, **rule, **band)
+        assert np.array_equal(stated.valid, found.valid) and stated.valid.mean() > 0.5, rule
+        assert decode(*raw, code, bit_depth=16, **rule, **band).valid.mean() < 0.8 * stated.valid.mean(), rule
+    wide = decode(*raw, code, bit_depth=16, **band)  # stated 16 bits: 16x darker, as the float data / 65535
+    alike(wide, decode(*as_float(65535.0), code, **band))
+    assert wide.valid.mean() < d12.valid.mean()
 
 
 def test_producers_make_coded_captures():

@@ -79,9 +79,10 @@ def check(
     """(H, W) bool error map: True where the hard-decision word is not a codeword of `code`
     (or is the codeword of a column >= `columns`, the codebook rows the projector does not use).
 
-    frames (n, H, W), white/black (H, W), inverse (n, H, W) or None, as for `decode`.
+    frames (n, H, W), white/black (H, W), inverse (n, H, W) or None, as for `decode` (float frames
+    in any scale: the decisions are midpoint thresholds).
     """
-    st = validate(frames, white, black, code, inverse=inverse)
+    st = validate(frames, white, black, code, inverse=inverse, scale_free=True)  # hard decisions
     ncols = code.size if columns is None else int(columns)
     if code.q == 2:
         col = columns_of_words(hard_words(st.frames, st.white, st.black, st.inverse), code)

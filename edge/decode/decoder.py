@@ -55,13 +55,14 @@ from .backends import Q_SCALE
 from .backends import get as get_backend
 from .inputs import NoPatternContrast, validate
 from .levels import estimate_levels
+from .misfit import check_fit, fits
 from .posterior import Noise, fit_noise, normalised32, posterior, split_levels
 from .propagate import propagate
 from .search import METRICS, band_args, check_call, search_candidates
 from .settings import DEFAULT_SETTINGS, METHODS, DecodeSettings
 from .sgm import Regularised
 from .sgm import from_posterior as sgm_from_posterior
-from .spatial import spatial_stage
+from .spatial import error_rule_spatial, spatial_stage
 from .validity import eligibility, valid_mask
 
 __all__ = ["DEFAULTS", "METHODS", "METRICS", "Q_SCALE", "Decoded", "decode", "decode_refined"]
@@ -124,12 +125,13 @@ def decode(
 ) -> Decoded:
     """Decode a capture of `code` into projector columns.
 
-    frames: (n, H, W) uint8 / uint16 / float (normalised, >= 0); white, black: (H, W) frames of
+    frames: (n, H, W) uint8 / uint16 / float (normalised to [0, 1]); white, black: (H, W) frames of
     the fully lit / dark projector, same dtype; inverse: optional (n, H, W) inverse-pattern
     frames.  min/max_disparity: candidate columns for camera column x are those whose projector
     columns [row*stripe, (row+1)*stripe) meet [x - max_disparity, x - min_disparity].
     columns: codebook rows in use (projector width / stripe, default all).  bit_depth:
-    significant bits of uint16 frames (default 16).
+    significant bits of uint16 frames (None: detected from the data, the smallest of 8, 10, 12,
+    14, 16 bits that holds its largest value; `edge.decode.inputs.validate`).
 
     settings: a `DecodeSettings` (default `DEFAULT_SETTINGS`); ``options`` are any of its fields
     (``method="list"``, ``sigma_r=0.02``, ...) applied on top, unknown names raise one
@@ -226,28 +228,43 @@ def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, nc
                       prior=(s.sigma_r, s.sigma_s), inverse=stack.inverse)
     post = posterior(stack.frames, stack.white, stack.black, float(scale), code, found.candidates, noise,
                      choices=band_choices(ncols, band, stripe), inverse=stack.inverse, distances=found.distances)
-    column0 = np.ascontiguousarray(post.candidates[..., 0])
-    target = s.max_error  # the one error-probability target
-    if s.method == "sgm":
-        reg = sgm_stage(stack, code, post.candidates, post.distances, post.error, noise, max_error=target,
-                        rows=ncols, choices=band_choices(ncols, band, stripe), stripe=stripe)
-        column, valid = reg.column, reg.valid
-        post = post._replace(candidates=reg.candidates, distances=reg.distances, error=reg.error)
-    elif s.method in ("soft", "hard"):
-        valid = (post.error < np.float32(target)) & (column0 >= 0)
-        column = np.where(valid, column0, -1).astype(np.int32)
-    else:
-        # the order prior / median filter on P(right): anchors and voters meet the target, a
-        # pixel that does not is corrected from its candidates where neighbours support one
-        sp = s.replace(t_high=1.0 - target, t_low=1.0 - target)
-        spatial = spatial_stage(sp, post.candidates, (1.0 - post.error).astype(np.float32), column0,
-                                column0 >= 0, stripe=stripe)
-        column = np.where(spatial.valid, spatial.column, -1).astype(np.int32)
-        valid = column >= 0
+    column, valid, candidates, distances, error = publish_error_rule(
+        stack, code, s, noise, post.candidates, post.distances, post.error, rows=ncols,
+        choices=band_choices(ncols, band, stripe), stripe=stripe)
     stats = dict(found.stats, noise_a=noise.a, noise_beta=noise.beta, noise_fitted=noise.fitted,
                  rule="error", levels=s.levels, level_source=source)
-    return Decoded(column=column, confidence=post.confidence, valid=valid, candidates=post.candidates,
-                   distances=post.distances, stats=stats, error=post.error)
+    return Decoded(column=column, confidence=post.confidence, valid=valid, candidates=candidates,
+                   distances=distances, stats=stats, error=error)
+
+
+def publish_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, noise: Noise, candidates: np.ndarray,
+                       distances: np.ndarray | None, error: np.ndarray, *, rows: int, choices: int,
+                       stripe: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+    """The error rule's host stages after the posterior (every backend): the goodness-of-fit test
+    (`edge.decode.misfit.check_fit`: the methods see a misfitting best candidate's P(wrong) as 1),
+    the method ("soft" / "hard": P(wrong) < max_error; "list" / "median": `error_rule_spatial`;
+    "sgm": `sgm_stage`), and no published column that misfits.  candidates (H, W, 3) int32 (the
+    CUDA backend's soft path: its published columns in [..., 0], -1 elsewhere), distances (H, W,
+    3) or None (not "sgm"), error (H, W) float32 P(wrong) of candidates[..., 0].  Returns
+    (column (H, W) int32 -1 where invalid, valid, candidates, distances, error): the error is the
+    posterior's (among the searched codewords), with "sgm" the regularised one."""
+    column0 = np.ascontiguousarray(candidates[..., 0])
+    target = s.max_error  # the one error-probability target
+    seen, threshold = check_fit(stack, code, (noise.a, noise.beta), column0, error, target)
+    if s.method == "sgm":
+        reg = sgm_stage(stack, code, candidates, distances, seen, noise, max_error=target, rows=rows,
+                        choices=choices, stripe=stripe)
+        column, valid = reg.column, reg.valid
+        candidates, distances, error = reg.candidates, reg.distances, reg.error
+    elif s.method in ("soft", "hard"):
+        valid = (seen < np.float32(target)) & (column0 >= 0)
+        column = np.where(valid, column0, -1).astype(np.int32)
+    else:
+        column, valid = error_rule_spatial(s, candidates, seen, stripe=stripe)
+    if s.method not in ("soft", "hard"):  # a column the method chose must explain the samples too
+        valid = valid & fits(stack, code, (noise.a, noise.beta), column, threshold)
+        column = np.where(valid, column, -1).astype(np.int32)
+    return column, valid, candidates, distances, error
 
 
 def sgm_stage(stack: CodedCapture, code: Code, candidates: np.ndarray, distances: np.ndarray, error: np.ndarray,

@@ -106,5 +106,5 @@ def estimate_levels(stack: CodedCapture, code: Code, levels: str, top1: Callable
     f = stack.frames.astype(np.float32) * s
     w, b = initial_levels(f, stack.white.astype(np.float32) * s, stack.black.astype(np.float32) * s)
     for _ in range(iterations):
-        w, b = refine_levels(f, w, b, code, top1(validate(f, w, b, code)))
-    return validate(f, w, b, code)
+        w, b = refine_levels(f, w, b, code, top1(validate(f, w, b, code, scale_free=True)))
+    return validate(f, w, b, code, scale_free=True)  # fitted levels may exceed 1 by their noise

@@ -23,7 +23,9 @@ Disparity convention (docs/architecture.md): a pixel at camera column x decoded 
   (``vote="column"``).  A pixel with confidence < t_high and at least `min_votes` votes gets the
   prediction ``p = x - median`` (rounded, in rows) or ``p = median``: it takes its
   best-ranked candidate within `tol` rows of p (its own column when no `candidates` are given),
-  else p itself.  With fewer votes it keeps its column, valid iff confidence >= t_low.
+  else p itself (``fill=True``, the paper's filter) or nothing: invalid (``fill=False``, the
+  error rule's: a pixel is published only on its own data's support, so a shadow between lit
+  neighbours stays a hole).  With fewer votes it keeps its column, valid iff confidence >= t_low.
   High-confidence pixels never change.
 * `spatial_outliers`: the evaluation test for smooth scenes: a valid column differing by more
   than `tol` from the median of the valid columns in its `window` x `window` neighbourhood.
@@ -178,7 +180,7 @@ def order_prior(
 
 
 @njit(cache=True, parallel=True)
-def _conf_median(col, conf, eligible, cand, t_low, t_high, radius, min_votes, tol, by_disparity, stripe,
+def _conf_median(col, conf, eligible, cand, t_low, t_high, radius, min_votes, tol, by_disparity, stripe, fill,
                  out_col, out_valid):
     height, width = col.shape
     k = cand.shape[2]
@@ -221,7 +223,7 @@ def _conf_median(col, conf, eligible, cand, t_low, t_high, radius, min_votes, to
                         break
             elif c >= 0 and abs(c - pred) <= tol:
                 chosen = c
-            out_col[yy, xx] = chosen if chosen >= 0 else pred
+            out_col[yy, xx] = chosen if chosen >= 0 else (pred if fill else -1)
             out_valid[yy, xx] = out_col[yy, xx] >= 0
 
 
@@ -238,8 +240,10 @@ def confidence_median(
     candidates: np.ndarray | None = None,
     vote: str = "disparity",
     stripe: int = 1,
+    fill: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Confidence-based median filter (see module docstring).
+    """Confidence-based median filter (see module docstring; ``fill``: a pixel none of whose
+    candidates is near the prediction takes the prediction (True) or is invalid (False)).
 
     column: (H, W) int32 codebook rows (-1 = none); confidence (H, W) float32; eligible (H, W)
     bool pixels that may vote or be filled; candidates: optional (H, W, K) int32 rows best-first.
@@ -266,7 +270,7 @@ def confidence_median(
     out_valid = np.empty(col.shape, np.bool_)
     _conf_median(col, np.ascontiguousarray(confidence, np.float32), np.ascontiguousarray(eligible, np.bool_), cand,
                  float(t_low), float(t_high), window // 2, int(min_votes), int(tol), vote == "disparity", int(stripe),
-                 out_col, out_valid)
+                 bool(fill), out_col, out_valid)
     return out_col, out_valid
 
 
@@ -453,16 +457,33 @@ class Spatial(NamedTuple):
     valid: np.ndarray | None
 
 
+def error_rule_spatial(settings: DecodeSettings, candidates: np.ndarray, error: np.ndarray, *,
+                       stripe: int) -> tuple[np.ndarray, np.ndarray]:
+    """Methods "list", "median", "list+median" under the "error" rule (every backend runs this on
+    the host): `spatial_stage` on P(right) = 1 - error, with t_high = t_low = 1 - max_error, so
+    that anchors and voters meet the target and a pixel that does not is corrected from its
+    candidates where neighbours support one, and invalid where none is (the median filter does not
+    fill it with the neighbours' column: ``fill=False``).  candidates (H, W, 3) int32 best-first,
+    error (H, W) float32 P(wrong) of candidates[..., 0].  Returns (column (H, W) int32, -1 where
+    invalid; valid (H, W) bool)."""
+    target = settings.max_error
+    column0 = np.ascontiguousarray(candidates[..., 0])
+    spatial = spatial_stage(settings.replace(t_high=1.0 - target, t_low=1.0 - target), candidates,
+                            (1.0 - error).astype(np.float32), column0, column0 >= 0, stripe=stripe, fill=False)
+    column = np.where(spatial.valid, spatial.column, -1).astype(np.int32)
+    return column, column >= 0
+
+
 def spatial_stage(settings: DecodeSettings, candidates: np.ndarray, confidence: np.ndarray, column: np.ndarray,
                   eligible: np.ndarray, *, stripe: int, distances: np.ndarray | None = None,
-                  choices: int | None = None) -> Spatial:
+                  choices: int | None = None, fill: bool = True) -> Spatial:
     """The spatial methods of ``settings.method`` on a candidate search's output.
 
     candidates: (H, W, 3) int32 rows best-first; confidence: (H, W) float32; column: (H, W) int32
     top-1 rows; eligible: (H, W) bool (contrast and a column, `edge.decode.validity.eligibility`);
     stripe: projector columns per codebook row (the disparity of the filters is in projector
     pixels).  "soft" / "hard": the support test (t_vote = t_high) if ``spatial_check``;
-    "list": `order_prior`; "median": `confidence_median` (with the candidates); "list+median":
+    "list": `order_prior`; "median": `confidence_median` (with the candidates, and ``fill``); "list+median":
     both in turn; "sgm": `edge.decode.sgm.from_search` on the search's ML `distances` (H, W, 3)
     with N = `choices` candidate columns (both required), valid where eligible and its error
     probability < ``max_error``.
@@ -482,7 +503,7 @@ def spatial_stage(settings: DecodeSettings, candidates: np.ndarray, confidence: 
         column, valid = order_prior(candidates, confidence, eligible, t_high=t_high, t_low=t_low, stripe=stripe)
     if method in ("median", "list+median"):
         column, valid = confidence_median(column, confidence, eligible & (column >= 0), t_low=t_low,
-                                          t_high=t_high, candidates=candidates, stripe=stripe)
+                                          t_high=t_high, candidates=candidates, stripe=stripe, fill=fill)
     if valid is None:
         raise ValueError(f"method: expected one of soft, hard, list, median, list+median, sgm, got {method!r}")
     return Spatial(column, None, valid)

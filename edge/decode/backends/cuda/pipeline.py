@@ -310,7 +310,7 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     want = _outputs(outputs)
     rule = out.get("rule", "confidence")
     if s.method in ("soft", "hard"):
-        names = [f for f in FIELDS if f in want]
+        names = [f for f in FIELDS if f in want or (rule == "error" and f in ("column", "valid"))]
     elif rule == "error":
         names = ["candidates", "confidence"] + (["distances"] if "distances" in want or s.method == "sgm" else [])
     else:
@@ -327,26 +327,26 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     side = st.pop("side_downloads", [])
     st["downloaded"] = [k for k, _ in side] + list(names)
     st["download_bytes"] = int(sum(a.nbytes for a in host.values())) + int(sum(b for _, b in side))
-    if s.method in ("soft", "hard"):
-        column, valid = host.get("column"), host.get("valid")
-    elif rule == "error" and s.method == "sgm":
-        # `_decode_error_rule`'s propagation + semi-global regularisation of the posterior, on the host
-        from ...decoder import sgm_stage
+    if rule == "error":
+        # the goodness-of-fit test and the method, on the host (`decoder.publish_error_rule`, as
+        # the CPU backend): soft / hard from the device's published columns
+        from ...decoder import publish_error_rule
 
         if stack is None or code is None:
-            raise ValueError("finish: method 'sgm' under the 'error' rule needs the host stack and its code")
-        reg = sgm_stage(stack, code, host["candidates"], host["distances"], host["error"], out["noise"],
-                        max_error=s.max_error, rows=out["rows"], choices=out["choices"], stripe=stripe)
-        column, valid = reg.column, reg.valid
-        host.update(candidates=reg.candidates, distances=reg.distances, error=reg.error)
-    elif rule == "error":
-        # `_decode_error_rule`'s spatial methods on P(right), on the host (as the CPU backend)
-        target = s.max_error
-        column0 = np.ascontiguousarray(host["candidates"][..., 0])
-        spatial = spatial_stage(s.replace(t_high=1.0 - target, t_low=1.0 - target), host["candidates"],
-                                (1.0 - host["error"]).astype(np.float32), column0, column0 >= 0, stripe=stripe)
-        column = np.where(spatial.valid, spatial.column, -1).astype(np.int32)
-        valid = column >= 0
+            raise ValueError("finish: the 'error' rule needs the host stack and its code")
+        if s.method in ("soft", "hard"):
+            cand = np.full(host["valid"].shape + (3,), -1, np.int32)
+            cand[..., 0] = np.where(host["valid"], host["column"], -1)
+        else:
+            cand = host["candidates"]
+        column, valid, cand, dist, err = publish_error_rule(
+            stack, code, s, out["noise"], cand, host.get("distances"), host["error"], rows=out["rows"],
+            choices=out["choices"], stripe=stripe)
+        if s.method not in ("soft", "hard"):
+            host.update(candidates=cand, distances=dist)
+        host["error"] = err
+    elif s.method in ("soft", "hard"):
+        column, valid = host.get("column"), host.get("valid")
     else:
         spatial = spatial_stage(s, host["candidates"], host["confidence"], host["column0"], host["eligible"],
                                 stripe=stripe, distances=host.get("distances"), choices=out.get("choices"))

@@ -1,0 +1,155 @@
+"""Goodness of fit of the decoded column: pixels that none of the searched codewords explains.
+
+The error probability (`edge.decode.posterior`) weighs the searched codewords against each other;
+it cannot see that none of them is right.  That happens where the truth is outside the search: a
+surface nearer or farther than the disparity band, projector columns beyond ``columns``, or a
+capture the model does not hold for (motion within the stack).  There the best searched codeword
+leaves residuals far larger than the noise, and the posterior still calls it certain.  So the
+"error" rule also tests the fit of each pixel's best candidate:
+
+* statistic: ``D = sum_i (r_i - mu_i)**2 / v(mu_i)`` over the pixel's m samples (code frames,
+  inverse frames, white, black), ``mu_i = b + c x_i`` with the candidate's least-squares levels
+  (``c >= 0``, as `posterior._fit`) and ``v`` the fitted noise model ``a + beta * mu``; where the
+  candidate is right, D follows chi2 with m - 2 degrees of freedom;
+* its scale on this capture: ``s = median(D) / median(chi2_(m - 2))`` over the pixels the
+  posterior alone would publish (P(wrong) < max_error: about 1 where the noise model is right;
+  larger where the capture is noisier than modelled, so that a global misfit such as projector
+  blur does not reject every pixel), at most `MAX_SCALE`;
+* a pixel *misfits* where ``D > s * q``, q the chi2_(m - 2) quantile at 1 - `MISFIT_LEVEL`
+  (Wilson-Hilferty): a right pixel does that with probability about 1e-6, a pixel whose best
+  candidate differs from the truth in a few well-lit bits does it almost surely.
+
+`check_fit` applies it: the spatial methods see a misfitting best candidate's P(wrong) as 1,
+and a published column that misfits is not published.  Both backends run it on the host, from the
+frames, the columns and the noise model (`edge.decode.decoder`, `backends.cuda.pipeline.finish`).  Units: samples normalised (1 = full scale).  Shapes: frames (n, H, W), white /
+black / best / outputs (H, W).
+"""
+
+from __future__ import annotations
+
+from statistics import NormalDist
+
+import numpy as np
+from numba import njit, prange
+
+from ..codes import Code
+
+#: A right pixel misfits with about this probability (the chi2 tail of the test).
+MISFIT_LEVEL = 1e-6
+#: Largest scale of the statistic over its chi2 law: a capture whose published pixels fit several
+#: times worse than its own noise model is mostly misfit, not a noisier camera.
+MAX_SCALE = 4.0
+
+
+@njit(cache=True, parallel=True)
+def _misfit_stat(frames, white, black, scale, xtab, best, a, beta, out):
+    n, height, width = frames.shape
+    m = n + 2
+    for yy in prange(height):
+        buf = np.empty(m, np.float64)
+        xs = np.empty(m, np.float64)
+        for xx in range(width):
+            row = best[yy, xx]
+            if row < 0:
+                out[yy, xx] = np.nan
+                continue
+            sx = 0.0
+            sxx = 0.0
+            sr = 0.0
+            sxr = 0.0
+            for i in range(m):
+                if i < n:
+                    r = frames[i, yy, xx] * scale
+                    x = xtab[row, i]
+                elif i == n:
+                    r = white[yy, xx] * scale
+                    x = 1.0
+                else:
+                    r = black[yy, xx] * scale
+                    x = 0.0
+                buf[i] = r
+                xs[i] = x
+                sx += x
+                sxx += x * x
+                sr += r
+                sxr += x * r
+            den = m * sxx - sx * sx
+            c = (m * sxr - sx * sr) / den if den > 0 else 0.0
+            c = c if c > 0.0 else 0.0
+            b = (sr - c * sx) / m
+            d = 0.0
+            for i in range(m):
+                mu = b + c * xs[i]
+                v = a + beta * (mu if mu > 0.0 else 0.0)
+                e = buf[i] - mu
+                d += e * e / v
+            out[yy, xx] = d
+
+
+def misfit_statistic(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, code: Code,
+                     best: np.ndarray, noise: tuple[float, float], *,
+                     inverse: np.ndarray | None = None) -> np.ndarray:
+    """(H, W) float64 D of the module docstring (NaN where best < 0).  frames (n, H, W), white /
+    black (H, W) raw, ``scale`` to normalised units; best (H, W) int codebook rows; noise (a, beta)
+    of the variance ``a + beta * I``; inverse (n, H, W) or None (n more samples, symbols 1 - x)."""
+    samples = np.ascontiguousarray(frames) if inverse is None else np.concatenate([frames, inverse], axis=0)
+    tab = np.asarray(code.codebook, np.float64) / float(code.q - 1)
+    if inverse is not None:
+        tab = np.concatenate([tab, 1.0 - tab], axis=1)
+    out = np.empty(np.shape(white), np.float64)
+    _misfit_stat(samples, np.ascontiguousarray(white), np.ascontiguousarray(black), np.float64(scale),
+                 np.ascontiguousarray(tab), np.ascontiguousarray(best, np.int32), float(noise[0]), float(noise[1]),
+                 out)
+    return out
+
+
+def _chi2_quantile(k: int, p: float) -> float:
+    """Wilson-Hilferty quantile of chi2_k at ``p``."""
+    z = NormalDist().inv_cdf(p)
+    return float(k * (1.0 - 2.0 / (9.0 * k) + z * np.sqrt(2.0 / (9.0 * k))) ** 3)
+
+
+def misfit_threshold(stat: np.ndarray, m: int) -> float:
+    """``s * q`` of the module docstring from the statistics ``stat`` of the pixels the scale is
+    taken over (any shape; NaN left out) of m samples per pixel; inf where there are none."""
+    k = max(1, m - 2)
+    finite = np.asarray(stat, np.float64)
+    finite = finite[np.isfinite(finite)]
+    if finite.size == 0:
+        return float("inf")
+    s = min(float(np.median(finite)) / _chi2_quantile(k, 0.5), MAX_SCALE)
+    return s * _chi2_quantile(k, 1.0 - MISFIT_LEVEL)
+
+
+def check_fit(stack, code: Code, noise: tuple[float, float], column0: np.ndarray, error: np.ndarray,
+              max_error: float) -> tuple[np.ndarray, float]:
+    """(P(wrong) as the spatial methods see it: `error` with 1 where column0 misfits, threshold).
+    stack: the validated `CodedCapture`; column0 (H, W) int the best candidates (-1 = none; the
+    CUDA backend's soft path passes its published columns only, which gives the same threshold
+    and the same published pixels); error (H, W) float32 P(wrong) of column0; the scale is taken
+    over the pixels with ``error < max_error``."""
+    stat = statistic_of(stack, code, noise, column0)
+    published = (column0 >= 0) & (error < np.float32(max_error))
+    threshold = misfit_threshold(stat[published], samples_per_pixel(stack))
+    with np.errstate(invalid="ignore"):
+        bad = stat > threshold
+    return np.where(bad, np.float32(1.0), error).astype(np.float32), threshold
+
+
+def fits(stack, code: Code, noise: tuple[float, float], column: np.ndarray, threshold: float) -> np.ndarray:
+    """(H, W) bool: where ``column`` (-1 = none: False) explains the samples (statistic at or below
+    ``threshold``, `check_fit`'s)."""
+    stat = statistic_of(stack, code, noise, column)
+    with np.errstate(invalid="ignore"):
+        return (np.asarray(column) >= 0) & ~(stat > threshold)
+
+
+def statistic_of(stack, code: Code, noise: tuple[float, float], column: np.ndarray) -> np.ndarray:
+    """`misfit_statistic` of a validated `CodedCapture`'s samples for the rows ``column``."""
+    return misfit_statistic(stack.frames, stack.white, stack.black, float(stack.scale), code,
+                            np.where(np.asarray(column) >= 0, column, -1), noise, inverse=stack.inverse)
+
+
+def samples_per_pixel(stack) -> int:
+    """m: code frames (and inverse frames) plus white and black."""
+    return stack.frames.shape[0] * (1 if stack.inverse is None else 2) + 2
