@@ -51,10 +51,36 @@ def main(argv: Sequence[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"edge {args.command}: error: {exc}", file=sys.stderr)
+    except Exception as exc:
+        message = user_error(exc)
+        if message is None:
+            raise
+        print(f"edge {args.command}: error: {message}", file=sys.stderr)
         return 2
     return int(result or 0)
+
+
+def user_error(exc: BaseException) -> str | None:
+    """The one line a command's exception is reported as (exit code 2, no traceback), or None for
+    a bug (raised as it is).  Bad input: ValueError (the library's checks); the environment: an
+    OSError (a missing, unwritable or full path, a directory where a file goes, a port in use),
+    memory, and the errors of zenoh (an endpoint it cannot open: `describe_zenoh_error`) and
+    OpenCV (an image it cannot write: its first line)."""
+    if isinstance(exc, MemoryError):
+        return f"not enough memory ({exc or type(exc).__name__}); try a smaller size"
+    if isinstance(exc, OSError):
+        return f"{exc.strerror or exc}: {exc.filename}" if exc.filename is not None else str(exc)
+    if isinstance(exc, ValueError):
+        return str(exc)
+    library = type(exc).__module__.split(".")[0]
+    if library == "zenoh":
+        from .io.zenoh_check import describe_zenoh_error
+
+        return describe_zenoh_error(exc)
+    if library == "cv2":
+        lines = str(exc).strip().splitlines()
+        return lines[0] if lines else type(exc).__name__
+    return None
 
 
 if __name__ == "__main__":

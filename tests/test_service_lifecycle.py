@@ -190,3 +190,32 @@ def test_stacks_no_pixel_sees_the_projector_in_are_published_empty():
     warned = [w for w in status["warnings"] if "no pixel sees the projector" in w]
     assert len(warned) == 1 and f"stack {dark[0].stack}:" in warned[0]
     assert len([x for x in logged if "no pixel sees the projector" in x]) == 1
+
+
+def test_frames_of_another_size_than_the_profile_are_refused():
+    """A sensor that sends frames of another size than the profile's camera (depth and the
+    published intrinsics are the profile's) gets one error naming both sizes, not a depth map of
+    the frames' size under the profile's intrinsics."""
+    import dataclasses
+
+    from edge.runtime.assembly import StackAssembler
+    from edge.runtime.pipeline import DepthPipeline
+
+    profile = load_test_profile()
+    pipe = DepthPipeline(profile)
+    sensor = SimSensor(profile, stacks=1, max_speed=True)
+    asm = StackAssembler(pipe.schedule)
+    sensor.start()
+    stack = None
+    try:
+        while stack is None:
+            frame = sensor.read(5.0)
+            stack = asm.push(frame) if frame is not None else None
+    finally:
+        sensor.stop()
+    assert pipe.process(stack).depth_mm.shape == (profile.camera.height, profile.camera.width)
+    cropped = dataclasses.replace(stack, frames=tuple(dataclasses.replace(f, image=f.image[:100, :150])
+                                                      for f in stack.frames))
+    with pytest.raises(ValueError, match=f"profile camera's {profile.camera.width}x{profile.camera.height} "
+                                         "pixels, got 150x100"):
+        pipe.process(cropped)

@@ -18,6 +18,7 @@ Name grammar (K = message bits, N = frames):
 from __future__ import annotations
 
 import functools
+import math
 import re
 from typing import Callable
 
@@ -67,22 +68,38 @@ def _crc(base: str, width: str, poly: str | None) -> Code:
     return crc_code(get_code(base), p, w)
 
 
-_PATTERNS: list[tuple[re.Pattern[str], Callable[..., Code]]] = [
-    (re.compile(r"(.+)\+crc(\d+)(?:-0x([0-9a-fA-F]+))?"), _crc),
-    (re.compile(r"binary-(\d+)"), lambda k: binary_code(int(k))),
-    (re.compile(r"gray-(\d+)"), lambda k: gray_code(int(k))),
-    (re.compile(r"xor02-(\d+)"), lambda k: xor_code(int(k), 2)),
-    (re.compile(r"xor04-(\d+)"), lambda k: xor_code(int(k), 4)),
-    (re.compile(r"ecc-(\d+)-(\d+)"), lambda n, k: _ecc(int(n), int(k))),
-    (re.compile(r"hamming-(\d+)-(\d+)"), lambda n, k: _hamming(int(n), int(k), False)),
-    (re.compile(r"ext-hamming-(\d+)-(\d+)"), lambda n, k: _hamming(int(n), int(k), True)),
-    (re.compile(r"bch-(\d+)-(\d+)"), lambda n, k: _bch(int(n), int(k), False)),
-    (re.compile(r"ext-bch-(\d+)-(\d+)"), lambda n, k: _bch(int(n), int(k), True)),
-    (re.compile(r"rm-(\d+)-(\d+)"), lambda r, m: reed_muller(int(r), int(m))),
-    (re.compile(r"search-(\d+)-(\d+)"), lambda n, k: search_code(int(n), int(k))),
-    (re.compile(r"poisson-(\d+)-(\d+)"), lambda n, k: search_code(int(n), int(k), method="poisson")),
-    (re.compile(r"nary(\d+)-(\d+)"), lambda q, k: nary_code(int(q), int(k))),
-    (re.compile(r"rs(8|16)-(\d+)-(\d+)"), lambda q, n, k: reed_solomon(int(q), int(n), int(k))),
+#: Most codewords (projector columns) a code may have: 2**16, far beyond any projector's width;
+#: larger codebooks are refused by name, before they are built (2**k rows of n symbols each).
+MAX_CODEWORDS = 1 << 16
+_MAX_BITS = 16
+
+
+def _rm_k(r: str, m: str) -> int:
+    """k of the Reed-Muller code RM(r, m) (m above 64 counts as 64: already far too many)."""
+    m_ = min(int(m), 64)
+    return sum(math.comb(m_, i) for i in range(min(int(r), m_) + 1))
+
+
+#: (name pattern, builder, log2 of the codewords the name asks for; None: checked by its parts).
+_PATTERNS: list[tuple[re.Pattern[str], Callable[..., Code], Callable[..., float] | None]] = [
+    (re.compile(r"(.+)\+crc(\d+)(?:-0x([0-9a-fA-F]+))?"), _crc, None),
+    (re.compile(r"binary-(\d+)"), lambda k: binary_code(int(k)), lambda k: int(k)),
+    (re.compile(r"gray-(\d+)"), lambda k: gray_code(int(k)), lambda k: int(k)),
+    (re.compile(r"xor02-(\d+)"), lambda k: xor_code(int(k), 2), lambda k: int(k)),
+    (re.compile(r"xor04-(\d+)"), lambda k: xor_code(int(k), 4), lambda k: int(k)),
+    (re.compile(r"ecc-(\d+)-(\d+)"), lambda n, k: _ecc(int(n), int(k)), lambda n, k: int(k)),
+    (re.compile(r"hamming-(\d+)-(\d+)"), lambda n, k: _hamming(int(n), int(k), False), lambda n, k: int(k)),
+    (re.compile(r"ext-hamming-(\d+)-(\d+)"), lambda n, k: _hamming(int(n), int(k), True), lambda n, k: int(k)),
+    (re.compile(r"bch-(\d+)-(\d+)"), lambda n, k: _bch(int(n), int(k), False), lambda n, k: int(k)),
+    (re.compile(r"ext-bch-(\d+)-(\d+)"), lambda n, k: _bch(int(n), int(k), True), lambda n, k: int(k)),
+    (re.compile(r"rm-(\d+)-(\d+)"), lambda r, m: reed_muller(int(r), int(m)), lambda r, m: _rm_k(r, m)),
+    (re.compile(r"search-(\d+)-(\d+)"), lambda n, k: search_code(int(n), int(k)), lambda n, k: int(k)),
+    (re.compile(r"poisson-(\d+)-(\d+)"), lambda n, k: search_code(int(n), int(k), method="poisson"),
+     lambda n, k: int(k)),
+    (re.compile(r"nary(\d+)-(\d+)"), lambda q, k: nary_code(int(q), int(k)),
+     lambda q, k: int(k) * math.log2(max(int(q), 1))),
+    (re.compile(r"rs(8|16)-(\d+)-(\d+)"), lambda q, n, k: reed_solomon(int(q), int(n), int(k)),
+     lambda q, n, k: int(k) * math.log2(int(q))),
 ]
 
 _FIXED: dict[str, Callable[[], Code]] = {
@@ -120,9 +137,12 @@ def get_code(name: str) -> Code:
     if name in _FIXED:
         code = _FIXED[name]()
         return code if code.name == name else code.with_name(name)
-    for pattern, build in _PATTERNS:
+    for pattern, build, codewords in _PATTERNS:
         m = pattern.fullmatch(name)
         if m:
+            if codewords is not None and codewords(*m.groups()) > _MAX_BITS + 1e-9:
+                raise ValueError(f"code {name!r}: 2**{codewords(*m.groups()):g} codewords, more than the "
+                                 f"{MAX_CODEWORDS} (2**{_MAX_BITS}) columns a code may have")
             code = build(*m.groups())
             return code if code.name == name else code.with_name(name)
     raise ValueError(

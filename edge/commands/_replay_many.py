@@ -39,7 +39,8 @@ def is_many(args: argparse.Namespace) -> bool:
 def replay_many(args: argparse.Namespace) -> int:
     from edge.io.replay_many import find_recordings, replay_serial, report_dict, summary_lines
 
-    for flag, value in (("--recover", args.recover), ("--publish", args.publish), ("--out", args.out)):
+    for flag, value in (("--recover", args.recover), ("--publish", args.publish), ("--out", args.out),
+                        ("--ply", getattr(args, "ply", None))):
         if value:
             raise ValueError(f"{flag} replays one recording; it cannot be combined with several files, "
                              "a directory, a pattern, --workers, --address or --report")

@@ -30,7 +30,7 @@ def _list(args: argparse.Namespace) -> int:
 
 def _show(args: argparse.Namespace) -> int:
     code = get_code(args.name)
-    if args.order != code.order:
+    if args.order is not None and args.order != code.order:
         if code.q != 2 or not code.systematic or code.generator is None:
             raise ValueError(f"--order applies to systematic binary linear codes; {code.name!r} is not one")
         code = from_generator(code.generator, name=code.name, family=code.family,
@@ -53,7 +53,9 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _table(args: argparse.Namespace) -> int:
-    ks = range(args.k, args.k + 1) if args.k else range(6, 13)
+    if args.k is not None and args.k < 1:
+        raise ValueError(f"--k: expected a number of information bits >= 1, got {args.k}")
+    ks = range(args.k, args.k + 1) if args.k is not None else range(6, 13)
     rows = table_rows(ks, args.n_max, progress=not args.no_progress)
     print(f"{'k':>3s} {'n':>3s} {'d_min':>5s} {'griesmer':>8s} {'known':>6s} {'gap':>4s}  {'family':14s} construction")
     for r in rows:
@@ -103,11 +105,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_list)
     p = sub.add_parser("show", help="properties of one code")
     p.add_argument("name", help="code name, e.g. ecc-22-10 (see 'edge codes list')")
-    p.add_argument("--order", choices=("gray", "binary", "gray-plain"), default="gray",
-                   help="column order for binary linear codes (default gray)")
+    p.add_argument("--order", choices=("gray", "binary", "gray-plain"), default=None,
+                   help="column order for systematic binary linear codes (default: the code's own)")
     p.set_defaults(func=_show)
     p = sub.add_parser("table", help="best d_min per (n, k) next to the Griesmer bound")
-    p.add_argument("--k", type=int, default=0, help="only this k (default: 6..12)")
+    p.add_argument("--k", type=int, default=None, help="only this k (default: 6..12)")
     p.add_argument("--n-max", type=int, default=TABLE_N_MAX, help=f"largest n (default {TABLE_N_MAX})")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_table)

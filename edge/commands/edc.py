@@ -58,7 +58,7 @@ def _run(args: argparse.Namespace) -> int:
 def _eval(args: argparse.Namespace) -> int:
     from edge.eval.edc import run_report
 
-    w, h = parse_size(args.size)
+    w, h = parse_size(args.size, minimum=8)  # its scenes need a few pixels of structure
     run_report(args.out, width=w, height=h, seed=args.seed, command=f"edge edc eval --size {args.size}")
     print(f"wrote {args.out}/README.md, roc.png, loop.png")
     return 0

@@ -21,6 +21,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--recover", action="store_true",
                    help="the writer was killed: salvage the complete chunks into FILE.recovered.mcap first")
     p.add_argument("--out", metavar="FILE", help="where --recover writes (default FILE.recovered.mcap)")
+    p.add_argument("--overwrite", action="store_true", help="let --recover replace an existing file")
     p.add_argument("--publish", action="store_true", help="republish the decoded depth over zenoh")
     p.add_argument("--listen", action="append", metavar="ENDPOINT", help="zenoh listen endpoint(s) for --publish")
     p.add_argument("--ply", metavar="DIR",
@@ -45,7 +46,10 @@ def replay(args: argparse.Namespace) -> int:
     if os.path.isdir(path):
         raise ValueError(f"recording {path!r} is a directory, expected an MCAP file")
     if args.recover:
+        from edge.io.recording import check_record_path
+
         out = args.out or (path[:-5] if path.endswith(".mcap") else path) + ".recovered.mcap"
+        check_record_path(out, overwrite=args.overwrite, inputs=(path,), option="--out" if args.out else "--recover")
         report = recover(path, out)
         print(f"edge replay: {report}")
         path = out

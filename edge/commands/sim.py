@@ -19,6 +19,7 @@ def register(subparsers: Any) -> None:
     r.add_argument("--profile", default="sim-dlp", help="firmware profile name or TOML path (default: sim-dlp)")
     r.add_argument("--first-stack", type=int, default=0, metavar="K", help="stack id (scene time) to start at")
     r.add_argument("--raw-only", action="store_true", help="record frames only, no depth / confidence")
+    r.add_argument("--overwrite", action="store_true", help="let OUT.mcap replace an existing file")
     r.set_defaults(func=record)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
@@ -81,7 +82,10 @@ def record_simulation(out: str, profile, stacks: int, *, first_stack: int = 0, o
 def record(args: argparse.Namespace) -> int:
     from edge.profiles import load_profile
 
+    from edge.io.recording import check_record_path
+
     profile = load_profile(args.profile)
+    check_record_path(args.out, overwrite=args.overwrite, inputs=(args.profile,), option="OUT.mcap")
     counts = record_simulation(args.out, profile, args.stacks, first_stack=args.first_stack,
                                outputs=not args.raw_only, progress=True)
     print(f"edge sim record: wrote {counts['stacks']} stacks ({counts['frames']} frames, {counts['outputs']} depth maps) "

@@ -386,42 +386,42 @@ class RecordingThread:
 
 
 def check_record_path(path: str | os.PathLike[str], *, overwrite: bool = False, rotate: bool = False,
-                      inputs: tuple[str | os.PathLike[str] | None, ...] = ()) -> None:
+                      inputs: tuple[str | os.PathLike[str] | None, ...] = (), option: str = "--record") -> None:
     """Refuse a recording target before anything is opened (ValueError with one line of reason).
 
     Refused: a directory, a missing or unwritable folder, a name longer than the file system
     allows, something that is not a regular file (``/dev/full``, a FIFO), one of ``inputs`` (the
     replayed recording, also through a symlink or hard link), and an existing recording unless
     ``overwrite`` (rotated recordings start a new, time-stamped series and never overwrite).
-    Nothing on disk is changed here.
+    Nothing on disk is changed here.  ``option``: the command-line option the messages name.
     """
     path = os.fspath(path)
     if not path:
-        raise ValueError("--record: expected a file name, got ''")
+        raise ValueError(f"{option}: expected a file name, got ''")
     if os.path.isdir(path):
-        raise ValueError(f"--record {path}: is a directory; expected a file name such as {os.path.join(path, 'run.mcap')}")
+        raise ValueError(f"{option} {path}: is a directory; expected a file name such as {os.path.join(path, 'run.mcap')}")
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
-        raise ValueError(f"--record {path}: folder {folder} does not exist")
+        raise ValueError(f"{option} {path}: folder {folder} does not exist")
     try:
         name_max = os.pathconf(folder, "PC_NAME_MAX")
     except (OSError, ValueError):
         name_max = 255
     names = [os.path.basename(rotated_path(path, series_stamp(), 0) if rotate else path)]
     if any(len(os.fsencode(n)) > name_max for n in names):
-        raise ValueError(f"--record {path}: file name longer than the {name_max} bytes this file system allows")
+        raise ValueError(f"{option} {path}: file name longer than the {name_max} bytes this file system allows")
     for other in inputs:
         if other and os.path.exists(other) and os.path.exists(path) and os.path.samefile(other, path):
-            raise ValueError(f"--record {path} is the recording being replayed ({other}); record to another file")
+            raise ValueError(f"{option} {path} is an input of this command ({other}); write to another file")
     existing = [] if rotate else ([path] if os.path.lexists(path) else [])
     for p in existing:
         if os.path.exists(p) and not os.path.isfile(p):
-            raise ValueError(f"--record {p}: exists and is not a regular file; expected a file name")
+            raise ValueError(f"{option} {p}: exists and is not a regular file; expected a file name")
     if existing and not overwrite:
         more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
-        raise ValueError(f"--record {existing[0]}{more} already exists; pass --overwrite to replace it "
+        raise ValueError(f"{option} {existing[0]}{more} already exists; pass --overwrite to replace it "
                          f"(nothing was changed)")
     if not os.access(folder, os.W_OK):
-        raise ValueError(f"--record {path}: folder {folder} is not writable")
+        raise ValueError(f"{option} {path}: folder {folder} is not writable")
     if existing and not all(os.access(p, os.W_OK) for p in existing):
-        raise ValueError(f"--record {path}: the existing file is not writable")
+        raise ValueError(f"{option} {path}: the existing file is not writable")

@@ -71,6 +71,15 @@ class EventSLConfig:
     threshold: float = DEFAULT_EVENT_THRESHOLD
     sensor: dict = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        for name in ("width", "height", "slot_us", "periods", "substeps"):
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"{name}: expected >= 1, got {getattr(self, name)}")
+        for name in ("flicker_hz", "flicker_depth", "ambient", "power", "dot_density"):
+            v = float(getattr(self, name))
+            if not np.isfinite(v) or v < 0.0:
+                raise ValueError(f"{name}: expected a finite value >= 0, got {getattr(self, name)}")
+
     def geometry(self) -> Geometry:
         return Geometry.projector_as_wide(self.width, self.height)
 

@@ -1,0 +1,80 @@
+"""The command line on bad input and a hostile environment: one line naming the problem, exit code
+2, no traceback, and nothing already on disk replaced (in-process `edge.cli.main`)."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from edge.cli import main, user_error
+
+DATA = Path(__file__).parent / "data"
+PROFILE = str(DATA / "profiles" / "test-small.toml")
+
+
+def _fails(capsys, *argv: str, expect: str) -> str:
+    rc = main([str(a) for a in argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2, (argv, err)
+    assert err and "Traceback" not in "\n".join(err), err
+    assert expect in err[-1], (expect, err[-1])
+    return err[-1]
+
+
+@pytest.mark.parametrize("name, expect", [
+    ("rm-2-10", "2**56 codewords, more than the 65536"),  # was a 512 PiB allocation
+    ("hamming-31-26", "2**26 codewords"),
+    ("bch-63-30", "2**30 codewords"),
+    ("gray-99999999999999", "codewords, more than"),
+    ("nary8-7", "2**21 codewords"),
+])
+def test_codes_too_large_are_refused_by_name(capsys, name, expect):
+    _fails(capsys, "codes", "show", name, expect=expect)
+
+
+def test_code_commands_take_their_own_defaults(capsys):
+    assert main(["codes", "show", "poisson-20-8"]) == 0  # its own column order (was refused for --order gray)
+    assert "poisson-20-8" in capsys.readouterr().out
+    _fails(capsys, "codes", "table", "--k", "0", expect="--k: expected a number of information bits >= 1")
+
+
+def test_recordings_are_not_replaced_without_overwrite(capsys, tmp_path):
+    rec = tmp_path / "a.mcap"
+    shutil.copy(DATA / "sim-small.mcap", rec)
+    before = rec.read_bytes()
+    _fails(capsys, "sim", "record", rec, "--stacks", "1", "--profile", PROFILE, expect="already exists; pass --overwrite")
+    profile_copy = tmp_path / "p.toml"
+    shutil.copy(PROFILE, profile_copy)
+    _fails(capsys, "sim", "record", profile_copy, "--stacks", "1", "--profile", profile_copy,
+           expect="is an input of this command")
+    other = tmp_path / "b.mcap"
+    shutil.copy(DATA / "sim-small.mcap", other)
+    _fails(capsys, "replay", rec, "--recover", "--out", other, expect="--out")
+    assert rec.read_bytes() == before and other.read_bytes() == before
+    assert profile_copy.read_text() == Path(PROFILE).read_text()
+    _fails(capsys, "sim", "record", tmp_path, "--stacks", "1", "--profile", PROFILE, expect="is a directory")
+    _fails(capsys, "replay", rec, other, "--ply", tmp_path / "ply", expect="--ply replays one recording")
+
+
+def test_bad_numbers_and_sizes(capsys, tmp_path):
+    _fails(capsys, "source", "event-demo", "--size", "64x48", "--periods", "0", expect="periods: expected >= 1")
+    _fails(capsys, "source", "event-demo", "--size", "64x48", "--flicker", "nan", expect="flicker_hz")
+    _fails(capsys, "edc", "eval", "--size", "4x4", "--out", tmp_path / "edc", expect="at least 8x8")
+    _fails(capsys, "edc", "run", "--size", "100000x100000", expect="at most 16384x16384")
+
+
+def test_user_error_covers_the_environment():
+    """What `main` reports as one line instead of a traceback: OSErrors with their path, memory,
+    zenoh (its Rust source locations stripped), OpenCV; anything else is a bug and is raised."""
+    assert user_error(IsADirectoryError(21, "Is a directory", "/x")) == "Is a directory: /x"
+    assert user_error(OSError(28, "No space left on device", "/dev/full")) == "No space left on device: /dev/full"
+    assert "not enough memory" in user_error(MemoryError("Unable to allocate 8 GiB"))
+    assert user_error(ValueError("bad")) == "bad"
+    zenoh = pytest.importorskip("zenoh")
+    text = user_error(zenoh.ZError("Address already in use at /root/.cargo/x/src/a.rs:12."))
+    assert text.startswith("cannot open the zenoh session") and ".rs:" not in text and "already listens" in text
+    cv2 = pytest.importorskip("cv2")
+    assert user_error(cv2.error("could not find a writer\nmore")) == "could not find a writer"
+    assert user_error(KeyError("x")) is None and user_error(IndexError("x")) is None
