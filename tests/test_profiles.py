@@ -75,6 +75,7 @@ def _with(tmp_path: Path, old: str, new: str) -> Path:
         ('name = "ecc-22-10"', 'name = "nosuch-10"', "code.name", "unknown code 'nosuch-10'"),
         ('source = ""', 'source = "10x1"', "code.source", "matching"),
         ('source = ""', 'source = "0000"', "code.source", "at least one '1'"),
+        ('source = ""', 'source = "1111"', "code.source", "at least one '0'"),  # never off: no code
         ('method = "soft"', 'method = "magic"', "decoder.method", "expected one of"),
         ("max_disparity = -64", "max_disparity = -200", "decoder.max_disparity", ">= decoder.min_disparity"),
         ("min_disparity = -176", "min_disparity = -400", "decoder.min_disparity", "min_disparity + doffs > 0"),

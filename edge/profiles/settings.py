@@ -478,6 +478,9 @@ def _check_profile(p: Profile, source: str) -> None:
         raise ProfileError(source, "code.name", "expected a code name for a 'columns' projector, got ''")
     if p.code.source and "1" not in p.code.source:
         raise ProfileError(source, "code.source", f"expected a bit string with at least one '1', got {p.code.source!r}")
+    if len(p.code.source) > 1 and "0" not in p.code.source:
+        raise ProfileError(source, "code.source", f"expected a bit string with at least one '0' (a source that is "
+                           f"never off is no code: use '' for none), got {p.code.source!r}")
     if p.decoder.min_disparity > p.decoder.max_disparity:
         raise ProfileError(source, "decoder.max_disparity",
                            f"expected >= decoder.min_disparity ({p.decoder.min_disparity}), got {p.decoder.max_disparity}")
