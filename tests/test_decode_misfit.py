@@ -43,7 +43,9 @@ def test_statistic_matches_the_numpy_reference(inverse):
     want = _reference(f, w, b, 1 / 4095, code, best, 4e-6, 1.6e-3, inverse=inv)
     np.testing.assert_allclose(got, want, rtol=1e-9)
     best[0, 0] = -1
-    assert np.isnan(misfit_statistic(f, w, b, 1 / 4095, code, best, (4e-6, 1.6e-3), inverse=inv)[0, 0])
+    f[3, 0, 1] = 4095  # a sample at full scale: not tested
+    got = misfit_statistic(f, w, b, 1 / 4095, code, best, (4e-6, 1.6e-3), inverse=inv)
+    assert np.isnan(got[0, 0]) and np.isnan(got[0, 1]) and np.isfinite(got[1:]).all()
 
 
 def test_threshold_is_the_scaled_chi2_tail():

@@ -40,6 +40,11 @@ validity rules of `spatial.order_prior` / `spatial.confidence_median`.  Defaults
 4. spatial methods (`edge.decode.validity.eligibility`, then `edge.decode.spatial.spatial_stage`):
    eligible pixels, the support test or the order prior / median filter, with the stripe width;
 5. validity rule (`edge.decode.validity.valid_mask`): -> column and valid mask.
+
+Under the "error" rule (`_decode_error_rule`) stages 2-5 are the split levels, the search, the
+noise fit and the posterior (`edge.decode.posterior`), then `publish_error_rule` on the host for
+every backend: the goodness-of-fit test (`edge.decode.misfit`), the method on P(wrong), and no
+published column that misfits.
 """
 
 from __future__ import annotations

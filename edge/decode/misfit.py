@@ -15,6 +15,8 @@ leaves residuals far larger than the noise, and the posterior still calls it cer
   posterior alone would publish (P(wrong) < max_error: about 1 where the noise model is right;
   larger where the capture is noisier than modelled, so that a global misfit such as projector
   blur does not reject every pixel), at most `MAX_SCALE`;
+* pixels with a sample at full scale are not tested (saturation bends a q-ary code's levels off
+  the line; a saturated binary pixel fits anyway);
 * a pixel *misfits* where ``D > s * q``, q the chi2_(m - 2) quantile at 1 - `MISFIT_LEVEL`
   (Wilson-Hilferty): a right pixel does that with probability about 1e-6, a pixel whose best
   candidate differs from the truth in a few well-lit bits does it almost surely.
@@ -57,6 +59,7 @@ def _misfit_stat(frames, white, black, scale, xtab, best, a, beta, out):
             sxx = 0.0
             sr = 0.0
             sxr = 0.0
+            saturated = False
             for i in range(m):
                 if i < n:
                     r = frames[i, yy, xx] * scale
@@ -69,10 +72,14 @@ def _misfit_stat(frames, white, black, scale, xtab, best, a, beta, out):
                     x = 0.0
                 buf[i] = r
                 xs[i] = x
+                saturated = saturated or r >= 1.0
                 sx += x
                 sxx += x * x
                 sr += r
                 sxr += x * r
+            if saturated:  # clipped at full scale: the linear model cannot be tested
+                out[yy, xx] = np.nan
+                continue
             den = m * sxx - sx * sx
             c = (m * sxr - sx * sr) / den if den > 0 else 0.0
             c = c if c > 0.0 else 0.0
@@ -89,7 +96,8 @@ def _misfit_stat(frames, white, black, scale, xtab, best, a, beta, out):
 def misfit_statistic(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, code: Code,
                      best: np.ndarray, noise: tuple[float, float], *,
                      inverse: np.ndarray | None = None) -> np.ndarray:
-    """(H, W) float64 D of the module docstring (NaN where best < 0).  frames (n, H, W), white /
+    """(H, W) float64 D of the module docstring (NaN where best < 0, and where a sample is at full
+    scale: saturation bends the levels of a q-ary code, and the test would reject right columns).  frames (n, H, W), white /
     black (H, W) raw, ``scale`` to normalised units; best (H, W) int codebook rows; noise (a, beta)
     of the variance ``a + beta * I``; inverse (n, H, W) or None (n more samples, symbols 1 - x)."""
     samples = np.ascontiguousarray(frames) if inverse is None else np.concatenate([frames, inverse], axis=0)
