@@ -41,56 +41,69 @@ MISFIT_LEVEL = 1e-6
 #: Largest scale of the statistic over its chi2 law: a capture whose published pixels fit several
 #: times worse than its own noise model is mostly misfit, not a noisier camera.
 MAX_SCALE = 4.0
+#: Pixels the scale's median is taken over at most (a regular subsample of the published ones).
+SCALE_PIXELS = 40000
 
 
 @njit(cache=True, parallel=True)
 def _misfit_stat(frames, white, black, scale, xtab, best, a, beta, out):
+    """Row by row, each frame's row read contiguously: the sums of the least-squares fit over the
+    code samples then white (x = 1) and black (x = 0), then the residuals in the same order."""
     n, height, width = frames.shape
     m = n + 2
     for yy in prange(height):
-        buf = np.empty(m, np.float64)
-        xs = np.empty(m, np.float64)
+        sx = np.ones(width, np.float64)  # white's x = 1
+        sxx = np.ones(width, np.float64)
+        sr = np.empty(width, np.float64)
+        sxr = np.empty(width, np.float64)
+        top = np.empty(width, np.float64)
+        rows = np.empty(width, np.int64)
+        xs = np.empty(width, np.float64)
         for xx in range(width):
-            row = best[yy, xx]
-            if row < 0:
-                out[yy, xx] = np.nan
-                continue
-            sx = 0.0
-            sxx = 0.0
-            sr = 0.0
-            sxr = 0.0
-            saturated = False
-            for i in range(m):
-                if i < n:
-                    r = frames[i, yy, xx] * scale
-                    x = xtab[row, i]
-                elif i == n:
-                    r = white[yy, xx] * scale
-                    x = 1.0
-                else:
-                    r = black[yy, xx] * scale
-                    x = 0.0
-                buf[i] = r
-                xs[i] = x
-                saturated = saturated or r >= 1.0
-                sx += x
-                sxx += x * x
-                sr += r
-                sxr += x * r
-            if saturated:  # clipped at full scale: the linear model cannot be tested
-                out[yy, xx] = np.nan
-                continue
-            den = m * sxx - sx * sx
-            c = (m * sxr - sx * sr) / den if den > 0 else 0.0
+            rows[xx] = max(best[yy, xx], 0)
+            w_ = white[yy, xx] * scale
+            b_ = black[yy, xx] * scale
+            sr[xx] = w_ + b_
+            sxr[xx] = w_
+            top[xx] = max(w_, b_)
+        for i in range(n):
+            src = frames[i, yy]
+            for xx in range(width):
+                xs[xx] = xtab[rows[xx], i]
+            for xx in range(width):
+                r = src[xx] * scale
+                x = xs[xx]
+                sx[xx] += x
+                sxx[xx] += x * x
+                sr[xx] += r
+                sxr[xx] += x * r
+                top[xx] = max(top[xx], r)
+        bb = np.empty(width, np.float64)
+        cc = np.empty(width, np.float64)
+        for xx in range(width):
+            den = m * sxx[xx] - sx[xx] * sx[xx]
+            c = (m * sxr[xx] - sx[xx] * sr[xx]) / den if den > 0 else 0.0
             c = c if c > 0.0 else 0.0
-            b = (sr - c * sx) / m
-            d = 0.0
-            for i in range(m):
-                mu = b + c * xs[i]
+            cc[xx] = c
+            b = (sr[xx] - c * sx[xx]) / m
+            bb[xx] = b
+            on = b + c
+            e1 = white[yy, xx] * scale - on
+            e0 = black[yy, xx] * scale - b
+            out[yy, xx] = e1 * e1 / (a + beta * (on if on > 0.0 else 0.0)) + e0 * e0 / (a + beta * (b if b > 0.0 else 0.0))
+        for i in range(n):
+            src = frames[i, yy]
+            for xx in range(width):
+                xs[xx] = xtab[rows[xx], i]
+            for xx in range(width):
+                mu = bb[xx] + cc[xx] * xs[xx]
                 v = a + beta * (mu if mu > 0.0 else 0.0)
-                e = buf[i] - mu
-                d += e * e / v
-            out[yy, xx] = d
+                e = src[xx] * scale - mu
+                out[yy, xx] += e * e / v
+        for xx in range(width):
+            # no candidate; or a sample at full scale, where the linear model cannot be tested
+            if best[yy, xx] < 0 or top[xx] >= 1.0:
+                out[yy, xx] = np.nan
 
 
 def misfit_statistic(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, code: Code,
@@ -125,6 +138,8 @@ def misfit_threshold(stat: np.ndarray, m: int) -> float:
     finite = finite[np.isfinite(finite)]
     if finite.size == 0:
         return float("inf")
+    if finite.size > SCALE_PIXELS:  # a regular subsample: the median needs thousands, not millions
+        finite = finite[:: -(-finite.size // SCALE_PIXELS)]
     s = min(float(np.median(finite)) / _chi2_quantile(k, 0.5), MAX_SCALE)
     return s * _chi2_quantile(k, 1.0 - MISFIT_LEVEL)
 
