@@ -193,29 +193,26 @@ def test_stacks_no_pixel_sees_the_projector_in_are_published_empty():
 
 
 def test_frames_of_another_size_than_the_profile_are_refused():
-    """A sensor that sends frames of another size than the profile's camera (depth and the
-    published intrinsics are the profile's) gets one error naming both sizes, not a depth map of
-    the frames' size under the profile's intrinsics."""
+    """A sensor whose frames are not the profile camera's size (depth and the published intrinsics
+    are the profile's) is refused at start with one error naming both sizes; a sensor that states
+    the right size but sends other frames gets that error per stack (as a decode error, so the
+    service stops after a run of them with it as the fault), not depth of the frames' size."""
     import dataclasses
 
-    from edge.runtime.assembly import StackAssembler
-    from edge.runtime.pipeline import DepthPipeline
+    from edge.profiles import apply_update
 
     profile = load_test_profile()
-    pipe = DepthPipeline(profile)
-    sensor = SimSensor(profile, stacks=1, max_speed=True)
-    asm = StackAssembler(pipe.schedule)
-    sensor.start()
-    stack = None
-    try:
-        while stack is None:
-            frame = sensor.read(5.0)
-            stack = asm.push(frame) if frame is not None else None
-    finally:
-        sensor.stop()
-    assert pipe.process(stack).depth_mm.shape == (profile.camera.height, profile.camera.width)
-    cropped = dataclasses.replace(stack, frames=tuple(dataclasses.replace(f, image=f.image[:100, :150])
-                                                      for f in stack.frames))
-    with pytest.raises(ValueError, match=f"profile camera's {profile.camera.width}x{profile.camera.height} "
-                                         "pixels, got 150x100"):
-        pipe.process(cropped)
+    other = apply_update(profile, {"camera": {"width": 150, "height": 100}})
+    with pytest.raises(ValueError, match="sends 150x100 frames, profile .* expects its camera's 160x120"):
+        Service(profile, SimSensor(other, max_speed=True), pipeline_factory=NumpyPipeline)
+
+    class Lying(SimSensor):
+        def read(self, timeout=None):
+            frame = super().read(timeout)
+            return None if frame is None else dataclasses.replace(frame, image=frame.image[:100, :150])
+
+    sink = Collect()
+    service = Service(profile, Lying(profile, max_speed=True), sinks=[sink], pipeline_factory=NumpyPipeline)
+    status = service.run(stacks=2)
+    assert not sink.results and status["decode_errors"] >= 1
+    assert "expected the profile camera's 160x120 pixels, got 150x100" in status["errors"]

@@ -162,3 +162,14 @@ class StackAssembler:
             self._stack = None
             return
         self._drop_current()
+
+
+def check_frame_size(frames, camera) -> None:
+    """ValueError unless every image frame of a stack is ``camera.width`` x ``camera.height``
+    pixels (the profile's camera: depth maps and published intrinsics have its size).  Frames
+    without an image (event slices) are not checked."""
+    for i, f in enumerate(frames):
+        image = getattr(f, "image", None)
+        if image is not None and np.shape(image)[:2] != (camera.height, camera.width):
+            raise ValueError(f"stack frame {i}: expected the profile camera's {camera.width}x{camera.height} "
+                             f"pixels, got {np.shape(image)[1]}x{np.shape(image)[0]}")

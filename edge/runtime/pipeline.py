@@ -154,13 +154,7 @@ class DepthPipeline:
         return self.despread(np.stack([f.image for f in frames]))
 
     def check_schedule(self, frames: list[Frame] | tuple[Frame, ...]) -> None:
-        """ValueError unless the frames' projector frame ids follow the profile schedule and every
-        frame has the profile camera's size (depth and intrinsics are that size)."""
-        cam = self.profile.camera
-        for i, f in enumerate(frames):
-            if np.shape(f.image)[:2] != (cam.height, cam.width):
-                raise ValueError(f"stack frame {i}: expected the profile camera's {cam.width}x{cam.height} "
-                                 f"pixels, got {np.shape(f.image)[1]}x{np.shape(f.image)[0]}")
+        """ValueError unless the frames' projector frame ids follow the profile schedule."""
         ids = np.array([f.projector_frame for f in frames], dtype=np.int64)
         if ids.shape != self.schedule.shape or not np.array_equal(ids % (1 << 16), self.schedule % (1 << 16)):
             raise ValueError(

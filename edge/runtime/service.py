@@ -31,7 +31,7 @@ from edge.profiles.live import LIVE_TABLES, ConfigRejected  # noqa: F401  (the c
 
 from ..decode.posterior import MIN_FIT_PIXELS
 from ..sensors.base import EndOfStream, Frame, MaskedCapture, Sensor
-from .assembly import StackAssembler
+from .assembly import StackAssembler, check_frame_size
 from .pipelines import make_pipeline
 from .result import DepthResult
 from .sdnotify import Notifier
@@ -87,6 +87,11 @@ class Service:
             raise ValueError(
                 f"sensor {sensor.info.name!r} sends stacks of {sensor.info.frames_per_stack} frames, "
                 f"profile {profile.name!r} expects {len(schedule)}")
+        if (sensor.info.width, sensor.info.height) != (profile.camera.width, profile.camera.height):
+            raise ValueError(
+                f"sensor {sensor.info.name!r} sends {sensor.info.width}x{sensor.info.height} frames, profile "
+                f"{profile.name!r} expects its camera's {profile.camera.width}x{profile.camera.height} (depth and "
+                f"intrinsics are the profile's)")
         self.assembler = StackAssembler(schedule, on_frame=getattr(self.pipeline, "on_frame", None))
         self.queue: LatestQueue = LatestQueue(queue_capacity)
         self.counters = ServiceCounters()
@@ -300,6 +305,7 @@ class Service:
                 self._use_pipeline(pending[1])
                 self._change = {"keys": list(pending[2]), "decode_s": []}
             try:
+                check_frame_size(stack.frames, self.profile.camera)
                 result = self.pipeline.process(stack, masked)
             except Exception as exc:
                 self.counters.decode_errors += 1

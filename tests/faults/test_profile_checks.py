@@ -49,7 +49,7 @@ def test_nonsense_is_rejected_naming_key_and_reason(update, key, reason):
 
 def test_long_source_code_is_bounded_by_the_stack_budget():
     with pytest.raises(ProfileError, match=r"code\.source: expected a stack of at most .* 64-slot source code"):
-        apply_update(load_profile("sim-dlp"), {"code": {"source": "1" * 64}})
+        apply_update(load_profile("sim-dlp"), {"code": {"source": "1" * 63 + "0"}})
     apply_update(load_profile("sim-dlp"), {"code": {"source": "1101"}})   # a short one still passes
 
 
