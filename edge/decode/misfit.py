@@ -34,6 +34,7 @@ from statistics import NormalDist
 import numpy as np
 from numba import njit, prange
 
+from ..capture import CodedCapture
 from ..codes import Code
 
 #: A right pixel misfits with about this probability (the chi2 tail of the test).
@@ -144,7 +145,7 @@ def misfit_threshold(stat: np.ndarray, m: int) -> float:
     return s * _chi2_quantile(k, 1.0 - MISFIT_LEVEL)
 
 
-def check_fit(stack, code: Code, noise: tuple[float, float], column0: np.ndarray, error: np.ndarray,
+def check_fit(stack: CodedCapture, code: Code, noise: tuple[float, float], column0: np.ndarray, error: np.ndarray,
               max_error: float) -> tuple[np.ndarray, float]:
     """(P(wrong) as the spatial methods see it: `error` with 1 where column0 misfits, threshold).
     stack: the validated `CodedCapture`; column0 (H, W) int the best candidates (-1 = none; the
@@ -159,7 +160,7 @@ def check_fit(stack, code: Code, noise: tuple[float, float], column0: np.ndarray
     return np.where(bad, np.float32(1.0), error).astype(np.float32), threshold
 
 
-def fits(stack, code: Code, noise: tuple[float, float], column: np.ndarray, threshold: float) -> np.ndarray:
+def fits(stack: CodedCapture, code: Code, noise: tuple[float, float], column: np.ndarray, threshold: float) -> np.ndarray:
     """(H, W) bool: where ``column`` (-1 = none: False) explains the samples (statistic at or below
     ``threshold``, `check_fit`'s)."""
     stat = statistic_of(stack, code, noise, column)
@@ -167,12 +168,12 @@ def fits(stack, code: Code, noise: tuple[float, float], column: np.ndarray, thre
         return (np.asarray(column) >= 0) & ~(stat > threshold)
 
 
-def statistic_of(stack, code: Code, noise: tuple[float, float], column: np.ndarray) -> np.ndarray:
+def statistic_of(stack: CodedCapture, code: Code, noise: tuple[float, float], column: np.ndarray) -> np.ndarray:
     """`misfit_statistic` of a validated `CodedCapture`'s samples for the rows ``column``."""
     return misfit_statistic(stack.frames, stack.white, stack.black, float(stack.scale), code,
                             np.where(np.asarray(column) >= 0, column, -1), noise, inverse=stack.inverse)
 
 
-def samples_per_pixel(stack) -> int:
+def samples_per_pixel(stack: CodedCapture) -> int:
     """m: code frames (and inverse frames) plus white and black."""
     return stack.frames.shape[0] * (1 if stack.inverse is None else 2) + 2
