@@ -55,7 +55,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         message = user_error(exc)
         if message is None:
             raise
-        print(f"edge {args.command}: error: {message}", file=sys.stderr)
+        action = getattr(args, f"{args.command}_command", None)  # a group's action: "edge sim record"
+        print(f"edge {args.command}{' ' + action if action else ''}: error: {message}", file=sys.stderr)
         return 2
     return int(result or 0)
 

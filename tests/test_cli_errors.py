@@ -78,3 +78,14 @@ def test_user_error_covers_the_environment():
     cv2 = pytest.importorskip("cv2")
     assert user_error(cv2.error("could not find a writer\nmore")) == "could not find a writer"
     assert user_error(KeyError("x")) is None and user_error(IndexError("x")) is None
+
+
+def test_a_directory_or_a_file_in_the_wrong_place_is_named_as_such(capsys, tmp_path):
+    _fails(capsys, "profiles", "show", tmp_path, expect="is a directory; expected a TOML file")
+    assert main(["profiles", "check", str(tmp_path)]) == 1  # the checker reports per file and goes on
+    assert "is a directory; expected a TOML file" in capsys.readouterr().out
+    _fails(capsys, "decode-images", DATA / "sim-small.mcap", expect="is a file; expected the folder")
+
+
+def test_a_group_command_names_its_action(capsys):
+    assert _fails(capsys, "codes", "show", "rm-2-10", expect="codewords").startswith("edge codes show: error:")

@@ -101,6 +101,8 @@ def load_opencv_graycode(directory: str | Path, projector: tuple[int, int] = (10
 
     projector: the ``(W, H)`` Gray-code grid in code cells (see the module docstring)."""
     d = Path(directory)
+    if d.exists() and not d.is_dir():
+        raise ValueError(f"capture directory {d} is a file; expected the folder of the capture's images")
     if not d.is_dir():
         raise FileNotFoundError(f"capture directory not found: {d}")
     files = sorted(p for p in d.iterdir() if p.suffix.lower() in _IMAGE_SUFFIXES)
@@ -147,6 +149,8 @@ def load_manifest(directory: str | Path, manifest: str | Path | None = None) -> 
     directory: the captured images, named after the manifest's frames; manifest: the
     ``manifest.json`` (default ``directory/manifest.json``)."""
     d = Path(directory)
+    if d.exists() and not d.is_dir():
+        raise ValueError(f"capture directory {d} is a file; expected the folder of the capture's images")
     if not d.is_dir():
         raise FileNotFoundError(f"capture directory not found: {d}")
     spec: LayoutSpec = read_manifest(Path(manifest) if manifest is not None else d / MANIFEST)

@@ -66,6 +66,8 @@ def find_profile(name_or_path: str | os.PathLike[str]) -> Path:
     if path.is_file():
         return path
     text = str(name_or_path)
+    if path.is_dir():
+        raise ValueError(f"profile {text!r} is a directory; expected a TOML file or a profile name")
     if text.endswith(".toml") or os.sep in text or "/" in text:
         raise FileNotFoundError(f"profile file {text!r} does not exist")
     for d in profile_dirs():
