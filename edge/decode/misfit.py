@@ -22,9 +22,11 @@ leaves residuals far larger than the noise, and the posterior still calls it cer
   candidate differs from the truth in a few well-lit bits does it almost surely.
 
 `check_fit` applies it: the spatial methods see a misfitting best candidate's P(wrong) as 1,
-and a published column that misfits is not published.  Both backends run it on the host, from the
-frames, the columns and the noise model (`edge.decode.decoder`, `backends.cuda.pipeline.finish`).  Units: samples normalised (1 = full scale).  Shapes: frames (n, H, W), white /
-black / best / outputs (H, W).
+and a published column that misfits is not published.  Both backends run it on the host, from
+the frames, the columns and the noise model (`edge.decode.decoder.publish_error_rule`).
+
+Units: samples normalised (1 = full scale).  Shapes: frames (n, H, W), white / black / best /
+outputs (H, W).
 """
 
 from __future__ import annotations
