@@ -349,7 +349,9 @@ class RecordingThread:
         self.frames_lost = self.frames_seen - self.frames_written
 
     def stats(self) -> dict[str, Any]:
-        size = sum(os.path.getsize(p) for p in self.files if os.path.exists(p))
+        # the writer thread may rotate or prune a file between listing and sizing it (keep=N):
+        # a file gone meanwhile counts 0 bytes
+        size = sum(_size_or_zero(p) for p in list(self.files))
         elapsed = max(1e-9, time.monotonic() - self._started)
         return {
             "path": self.path, "frames_written": self.frames_written, "frames_lost": self.frames_lost,
@@ -383,6 +385,14 @@ class RecordingThread:
             self.stopped = True
             self.error = f"{self.recorder.path}: {self.recorder.error}; the file holds what reached the disk"
             self.frames_lost = self.frames_seen - self.frames_written
+
+
+def _size_or_zero(path: str) -> int:
+    """Bytes of ``path``, 0 where it does not exist (any more)."""
+    try:
+        return os.path.getsize(path)
+    except OSError:
+        return 0
 
 
 def check_record_path(path: str | os.PathLike[str], *, overwrite: bool = False, rotate: bool = False,

@@ -274,3 +274,23 @@ def test_live_change_over_the_stack_budget_is_reported():
     assert status["warnings"] and "over the 200 ms stack budget" in status["warnings"][0]
     assert logged and "warning" in logged[0]
     assert status["edc_rounds"] == 2  # applied (with the warning), not silently reverted
+
+
+def test_stats_survive_a_file_pruned_while_they_are_taken(tmp_path, monkeypatch):
+    """`RecordingThread.stats` runs on the status thread while the writer thread rotates and prunes
+    (keep=N): a listed file that is gone by the time it is sized counts 0 bytes (it raised
+    FileNotFoundError, which ended the service's run and left the writer thread behind)."""
+    from edge.io.recording import RecordingThread
+
+    profile = load_test_profile()
+    rec = RecordingThread(tmp_path / "keep.mcap", profile, max_bytes=200_000, keep=2)
+    try:
+        here = tmp_path / "here.mcap"
+        here.write_bytes(b"12345")
+        rec.files[:] = [str(tmp_path / "gone.mcap"), str(here)]
+        with monkeypatch.context() as m:  # the race: the file still existed when it was listed
+            m.setattr("os.path.exists", lambda p: True)
+            assert rec.stats()["bytes"] == 5
+    finally:
+        rec.files[:] = []
+        rec.close()
