@@ -38,6 +38,7 @@ from numba import njit, prange
 
 from ..capture import CodedCapture
 from ..codes import Code
+from .posterior import _samples, _xtab
 
 #: A right pixel misfits with about this probability (the chi2 tail of the test).
 MISFIT_LEVEL = 1e-6
@@ -116,13 +117,10 @@ def misfit_statistic(frames: np.ndarray, white: np.ndarray, black: np.ndarray, s
     scale: saturation bends the levels of a q-ary code, and the test would reject right columns).  frames (n, H, W), white /
     black (H, W) raw, ``scale`` to normalised units; best (H, W) int codebook rows; noise (a, beta)
     of the variance ``a + beta * I``; inverse (n, H, W) or None (n more samples, symbols 1 - x)."""
-    samples = np.ascontiguousarray(frames) if inverse is None else np.concatenate([frames, inverse], axis=0)
-    tab = np.asarray(code.codebook, np.float64) / float(code.q - 1)
-    if inverse is not None:
-        tab = np.concatenate([tab, 1.0 - tab], axis=1)
+    samples = _samples(frames, inverse)
     out = np.empty(np.shape(white), np.float64)
     _misfit_stat(samples, np.ascontiguousarray(white), np.ascontiguousarray(black), np.float64(scale),
-                 np.ascontiguousarray(tab), np.ascontiguousarray(best, np.int32), float(noise[0]), float(noise[1]),
+                 _xtab(code, inverse is not None), np.ascontiguousarray(best, np.int32), float(noise[0]), float(noise[1]),
                  out)
     return out
 
