@@ -194,8 +194,9 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     ref = [np.empty((h, w, 3), np.int32), np.empty((h, w, 3), np.float32), np.empty((h, w)), np.empty((h, w)),
            np.empty((h, w), np.float32), np.empty((h, w), np.float32)]
     due, far, every, lbest = (np.empty((h, w), np.uint8), np.empty((h, w)), np.empty((h, w)), np.empty((h, w)))
+    misfit = np.empty((h, w), np.float32)
     P._posterior(samples, white, black, scale, xtab, cand, searched, a, beta, flips, float(weight), True, 1,
-                 ptab, pu0, pdu, pw0, pdw, pout, use, *ref, far, every, lbest, due)
+                 ptab, pu0, pdu, pw0, pdw, pout, use, *ref, far, every, lbest, due, misfit)
     # every due pixel's tail (P(not lit) = 0 everywhere, on both)
     P._tail_pass(samples, white, black, scale, xtab, code.n, ref[0], due, far, every, lbest,
                  np.zeros((h, w), np.int64), np.zeros(1), a, beta, packed, flips, tail.columns, float(weight),
@@ -206,6 +207,7 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
            cuda.device_array((h, w)), cuda.device_array((h, w)), cuda.device_array((h, w), np.float32)]
     d_due, d_far, d_every, d_lbest = (cuda.device_array((h, w), np.uint8), cuda.device_array((h, w)),
                                       cuda.device_array((h, w)), cuda.device_array((h, w)))
+    d_misfit = cuda.device_array((h, w), np.float32)
     inv = cuda.to_device(cap.inverse if inverse else np.zeros((1, 1, 1), cap.frames.dtype))
     grid = (h * w + post_k.TPB - 1) // post_k.TPB
     d_frames, d_white, d_black, d_ptab = (cuda.to_device(cap.frames), cuda.to_device(white), cuda.to_device(black),
@@ -213,7 +215,7 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     post_k.posterior_kernel[grid, post_k.TPB](
         d_frames, inv, inverse, d_white, d_black, scale, tb["xtab"], cuda.to_device(cand), cuda.to_device(searched),
         float(P.SKIP_MARGIN), a, beta, tb["nflips"], tb["weight"], float(P.TAIL_FLOOR), d_ptab, pu0, pdu, pw0, pdw,
-        pout, use, *out, d_far, d_every, d_lbest, d_due)
+        pout, use, *out, d_far, d_every, d_lbest, d_due, d_misfit)
     def tail_pass(not_lit, out_comp):
         """tail_kernel with P(not lit) = not_lit for every finite gain (one bin)."""
         post_k.tail_kernel[grid, post_k.TPB](
@@ -230,23 +232,25 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     tail_pass(0.75, shadow)
     ok_due &= bool((shadow.copy_to_host() == -1.0).all())
     ok = np.array_equal(got[0], ref[0])
+    same_misfit = np.array_equal(d_misfit.copy_to_host(), misfit, equal_nan=True) and np.isfinite(misfit).any()
     close = [np.allclose(g, r, rtol=ERR_RTOL, atol=ERR_ATOL, equal_nan=True)
              for g, r in zip(got[1:], [ref[1], ref[2], ref[3], ref[4]])]
     # pixels whose competitor mass (ref[2]) has a tail term: it differs from the top three's alone
     top3 = [np.empty_like(r) for r in ref]
     P._posterior(samples, white, black, scale, xtab, cand, searched, a, beta, np.zeros(0, np.uint64), 1.0,
                  True, 1, ptab, pu0, pdu, pw0, pdw, pout, use, *top3, np.empty((h, w)), np.empty((h, w)),
-                 np.empty((h, w)), np.empty((h, w), np.uint8))
+                 np.empty((h, w)), np.empty((h, w), np.uint8), np.empty((h, w), np.float32))
     tails = int((ref[2] != top3[2]).sum())
-    emit(name, ok and ok_due and all(close) and use and 0 < tails,
+    emit(name, ok and ok_due and all(close) and use and 0 < tails and same_misfit,
          f"candidates equal {ok}, tail due mask and shadow gate as on the CPU {ok_due}, distances / competitors / gain / confidence close {close}, "
+         f"misfit equal {same_misfit}, "
          f"prior {use}, pixels with a tail mass {tails}/{h * w}")
 
 
 def check_error_rule_reduced(name):
     """The reduced download under the "error" rule (`pipeline.decode_whole` and `Staging.decode`
     with the runtime's `HOST_OUTPUTS`): column, confidence, valid and error come back with the
-    CPU's values; candidates / distances stay on the device; the other downloads are the small
+    CPU's values (and misfit, the host's goodness-of-fit test's statistic); candidates / distances stay on the device; the other downloads are the small
     noise-fit / histogram arrays only (counted at the `to_host` seam, = stats download_bytes)."""
     from edge.decode.backends.cuda.pipeline import HOST_OUTPUTS, decode_whole
     from edge.decode.backends.cuda.staging import Staging
@@ -271,7 +275,7 @@ def check_error_rule_reduced(name):
         same = all(np.array_equal(getattr(ref, f), getattr(got, f)) for f in ("column", "valid"))
         close = (np.allclose(ref.confidence, got.confidence, rtol=ERR_RTOL, atol=ERR_ATOL)
                  and error_agrees(ref.error, got.error))
-        ok &= same and close and sorted(results) == sorted(["column", "confidence", "valid", "error"])
+        ok &= same and close and sorted(results) == sorted(["column", "confidence", "valid", "error", "misfit"])
         ok &= set(dl.names) - set(results) <= small and "gain_counts" in dl.names
         ok &= got.candidates is None and got.distances is None and got.stats.get("rule") == "error"
         ok &= dl.bytes == got.stats["download_bytes"]

@@ -9,7 +9,7 @@ codewords and in its disparity band, with `decode()`'s defaults.
 
 Stage table: the median wall time of each stage that `edge.decode.decoder._decode_error_rule`
 calls (split levels, the float32 copy of the frames for the search, the candidate search, the
-noise fit, the posterior), timed by wrapping the decoder module's references to them for the
+noise fit, the posterior, and the host's goodness-of-fit test and method: `publish_error_rule`), timed by wrapping the decoder module's references to them for the
 duration of the run (nothing else is changed), next to the median of the whole call.
 
 Tail table (hard regime, all codewords): the tail mass (`posterior._tail_mass`) is due on the
@@ -42,7 +42,7 @@ import edge.decode.posterior as posterior  # noqa: E402
 from edge.decode import decode  # noqa: E402
 
 #: The decoder module's stage functions that are timed (`decoder._decode_error_rule`'s calls).
-STAGES = ("split_levels", "split_capture", "search_candidates", "fit_noise", "posterior")
+STAGES = ("split_levels", "split_capture", "search_candidates", "fit_noise", "posterior", "publish_error_rule")
 
 
 @contextlib.contextmanager

@@ -235,7 +235,7 @@ def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, nc
                      choices=band_choices(ncols, band, stripe), inverse=stack.inverse, distances=found.distances)
     column, valid, candidates, distances, error = publish_error_rule(
         stack, code, s, noise, post.candidates, post.distances, post.error, rows=ncols,
-        choices=band_choices(ncols, band, stripe), stripe=stripe)
+        choices=band_choices(ncols, band, stripe), stripe=stripe, misfit=post.misfit)
     stats = dict(found.stats, noise_a=noise.a, noise_beta=noise.beta, noise_fitted=noise.fitted,
                  rule="error", levels=s.levels, level_source=source)
     return Decoded(column=column, confidence=post.confidence, valid=valid, candidates=candidates,
@@ -244,18 +244,21 @@ def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, nc
 
 def publish_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, noise: Noise, candidates: np.ndarray,
                        distances: np.ndarray | None, error: np.ndarray, *, rows: int, choices: int,
-                       stripe: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+                       stripe: int, misfit: np.ndarray | None = None
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
     """The error rule's host stages after the posterior (every backend): the goodness-of-fit test
     (`edge.decode.misfit.check_fit`: the methods see a misfitting best candidate's P(wrong) as 1),
     the method ("soft" / "hard": P(wrong) < max_error; "list" / "median": `error_rule_spatial`;
     "sgm": `sgm_stage`), and no published column that misfits.  candidates (H, W, 3) int32 (the
     CUDA backend's soft path: its published columns in [..., 0], -1 elsewhere), distances (H, W,
-    3) or None (not "sgm"), error (H, W) float32 P(wrong) of candidates[..., 0].  Returns
+    3) or None (not "sgm"), error (H, W) float32 P(wrong) of candidates[..., 0]; misfit (H, W)
+    float32 the posterior's goodness-of-fit statistic of its best candidates (`Posterior.misfit`),
+    or None to compute it from the samples.  Returns
     (column (H, W) int32 -1 where invalid, valid, candidates, distances, error): the error is the
     posterior's (among the searched codewords), with "sgm" the regularised one."""
     column0 = np.ascontiguousarray(candidates[..., 0])
     target = s.max_error  # the one error-probability target
-    seen, threshold = check_fit(stack, code, (noise.a, noise.beta), column0, error, target)
+    seen, threshold = check_fit(stack, code, (noise.a, noise.beta), column0, error, target, misfit)
     if s.method == "sgm":
         reg = sgm_stage(stack, code, candidates, distances, seen, noise, max_error=target, rows=rows,
                         choices=choices, stripe=stripe)

@@ -22,8 +22,11 @@ leaves residuals far larger than the noise, and the posterior still calls it cer
   candidate differs from the truth in a few well-lit bits does it almost surely.
 
 `check_fit` applies it: the spatial methods see a misfitting best candidate's P(wrong) as 1,
-and a published column that misfits is not published.  Both backends run it on the host, from
-the frames, the columns and the noise model (`edge.decode.decoder.publish_error_rule`).
+and a published column that misfits is not published.  D of the best candidate is the
+Mahalanobis part of its likelihood, so both backends' posterior kernels return it on the way
+(`edge.decode.posterior.Posterior.misfit`); the test itself runs on the host
+(`edge.decode.decoder.publish_error_rule`), and a column a spatial method chose instead is
+scored here (`misfit_statistic`, the same arithmetic).
 
 Units: samples normalised (1 = full scale).  Shapes: frames (n, H, W), white / black / best /
 outputs (H, W).
@@ -38,7 +41,7 @@ from numba import njit, prange
 
 from ..capture import CodedCapture
 from ..codes import Code
-from .posterior import _samples, _xtab
+from .posterior import FULL_SCALE_SAMPLE, _samples, _xtab
 
 #: A right pixel misfits with about this probability (the chi2 tail of the test).
 MISFIT_LEVEL = 1e-6
@@ -51,25 +54,25 @@ SCALE_PIXELS = 40000
 
 @njit(cache=True, parallel=True)
 def _misfit_stat(frames, white, black, scale, xtab, best, a, beta, out):
-    """Row by row, each frame's row read contiguously: the sums of the least-squares fit over the
-    code samples then white (x = 1) and black (x = 0), then the residuals in the same order."""
+    """Row by row, each frame's row read contiguously, in the arithmetic and order of the
+    posterior's `_nll` / `_lane_nll` Mahalanobis part (so the values are the posterior's
+    ``misfit`` bit for bit): the fit's sums over the code samples, white (x = 1) first in the
+    cross terms and last with black in the plain sum; the residuals of the code samples, then
+    white, then black; a sample of symbol 0 or 1 weighed by its level's reciprocal variance."""
     n, height, width = frames.shape
     m = n + 2
     for yy in prange(height):
         sx = np.ones(width, np.float64)  # white's x = 1
         sxx = np.ones(width, np.float64)
-        sr = np.empty(width, np.float64)
+        sr = np.zeros(width, np.float64)
         sxr = np.empty(width, np.float64)
         top = np.empty(width, np.float64)
         rows = np.empty(width, np.int64)
         xs = np.empty(width, np.float64)
         for xx in range(width):
             rows[xx] = max(best[yy, xx], 0)
-            w_ = white[yy, xx] * scale
-            b_ = black[yy, xx] * scale
-            sr[xx] = w_ + b_
-            sxr[xx] = w_
-            top[xx] = max(w_, b_)
+            sxr[xx] = white[yy, xx] * scale
+            top[xx] = frames[0, yy, xx] * scale
         for i in range(n):
             src = frames[i, yy]
             for xx in range(width):
@@ -79,46 +82,67 @@ def _misfit_stat(frames, white, black, scale, xtab, best, a, beta, out):
                 x = xs[xx]
                 sx[xx] += x
                 sxx[xx] += x * x
-                sr[xx] += r
                 sxr[xx] += x * r
+                sr[xx] += r
                 top[xx] = max(top[xx], r)
         bb = np.empty(width, np.float64)
         cc = np.empty(width, np.float64)
+        r0 = np.empty(width, np.float64)
+        r1 = np.empty(width, np.float64)
+        acc = np.zeros(width, np.float64)
         for xx in range(width):
+            w_ = white[yy, xx] * scale
+            b_ = black[yy, xx] * scale
+            sr[xx] += w_
+            sr[xx] += b_
+            top[xx] = max(top[xx], max(w_, b_))
             den = m * sxx[xx] - sx[xx] * sx[xx]
             c = (m * sxr[xx] - sx[xx] * sr[xx]) / den if den > 0 else 0.0
-            c = c if c > 0.0 else 0.0
-            cc[xx] = c
+            if c < 0.0:
+                c = 0.0
             b = (sr[xx] - c * sx[xx]) / m
             bb[xx] = b
-            on = b + c
-            e1 = white[yy, xx] * scale - on
-            e0 = black[yy, xx] * scale - b
-            out[yy, xx] = e1 * e1 / (a + beta * (on if on > 0.0 else 0.0)) + e0 * e0 / (a + beta * (b if b > 0.0 else 0.0))
+            cc[xx] = c
+            m1 = b + c
+            r0[xx] = 1.0 / (a + beta * (b if b > 0.0 else 0.0))
+            r1[xx] = 1.0 / (a + beta * (m1 if m1 > 0.0 else 0.0))
         for i in range(n):
             src = frames[i, yy]
             for xx in range(width):
                 xs[xx] = xtab[rows[xx], i]
             for xx in range(width):
-                mu = bb[xx] + cc[xx] * xs[xx]
-                v = a + beta * (mu if mu > 0.0 else 0.0)
-                e = src[xx] * scale - mu
-                out[yy, xx] += e * e / v
+                x = xs[xx]
+                if x == 0.0:
+                    e = src[xx] * scale - bb[xx]
+                    acc[xx] += e * e * r0[xx]
+                elif x == 1.0:
+                    e = src[xx] * scale - (bb[xx] + cc[xx])
+                    acc[xx] += e * e * r1[xx]
+                else:
+                    mi = bb[xx] + cc[xx] * x
+                    v = a + beta * (mi if mi > 0.0 else 0.0)
+                    e = src[xx] * scale - mi
+                    acc[xx] += e * e / v
         for xx in range(width):
+            e = white[yy, xx] * scale - (bb[xx] + cc[xx])
+            acc[xx] += e * e * r1[xx]
+            e = black[yy, xx] * scale - bb[xx]
+            acc[xx] += e * e * r0[xx]
             # no candidate; or a sample at full scale, where the linear model cannot be tested
-            if best[yy, xx] < 0 or top[xx] >= 1.0:
-                out[yy, xx] = np.nan
+            out[yy, xx] = np.nan if best[yy, xx] < 0 or top[xx] >= FULL_SCALE_SAMPLE else acc[xx]
 
 
 def misfit_statistic(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, code: Code,
                      best: np.ndarray, noise: tuple[float, float], *,
                      inverse: np.ndarray | None = None) -> np.ndarray:
-    """(H, W) float64 D of the module docstring (NaN where best < 0, and where a sample is at full
-    scale: saturation bends the levels of a q-ary code, and the test would reject right columns).  frames (n, H, W), white /
-    black (H, W) raw, ``scale`` to normalised units; best (H, W) int codebook rows; noise (a, beta)
-    of the variance ``a + beta * I``; inverse (n, H, W) or None (n more samples, symbols 1 - x)."""
+    """(H, W) float32 D of the module docstring (NaN where best < 0, and where a sample is at full
+    scale, `FULL_SCALE_SAMPLE`: saturation bends the levels of a q-ary code, and the test would
+    reject right columns).  frames (n, H, W), white / black (H, W) raw, ``scale`` to normalised
+    units; best (H, W) int codebook rows; noise (a, beta) of the variance ``a + beta * I``; inverse
+    (n, H, W) or None (n more samples, symbols 1 - x).  With the posterior's scale and noise, and
+    best = its candidates[..., 0], the values are `edge.decode.posterior.Posterior.misfit`'s."""
     samples = _samples(frames, inverse)
-    out = np.empty(np.shape(white), np.float64)
+    out = np.empty(np.shape(white), np.float32)
     _misfit_stat(samples, np.ascontiguousarray(white), np.ascontiguousarray(black), np.float64(scale),
                  _xtab(code, inverse is not None), np.ascontiguousarray(best, np.int32), float(noise[0]), float(noise[1]),
                  out)
@@ -146,13 +170,16 @@ def misfit_threshold(stat: np.ndarray, m: int) -> float:
 
 
 def check_fit(stack: CodedCapture, code: Code, noise: tuple[float, float], column0: np.ndarray, error: np.ndarray,
-              max_error: float) -> tuple[np.ndarray, float]:
+              max_error: float, stat: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """(P(wrong) as the spatial methods see it: `error` with 1 where column0 misfits, threshold).
     stack: the validated `CodedCapture`; column0 (H, W) int the best candidates (-1 = none; the
     CUDA backend's soft path passes its published columns only, which gives the same threshold
     and the same published pixels); error (H, W) float32 P(wrong) of column0; the scale is taken
-    over the pixels with ``error < max_error``."""
-    stat = statistic_of(stack, code, noise, column0)
+    over the pixels with ``error < max_error``.  stat: (H, W) float32 the statistic of the
+    posterior's best candidates (`edge.decode.posterior.Posterior.misfit`, which both backends'
+    posterior kernels compute on the way), or None to compute it here from column0."""
+    if stat is None:
+        stat = statistic_of(stack, code, noise, column0)
     published = (column0 >= 0) & (error < np.float32(max_error))
     threshold = misfit_threshold(stat[published], samples_per_pixel(stack))
     with np.errstate(invalid="ignore"):
@@ -169,8 +196,9 @@ def fits(stack: CodedCapture, code: Code, noise: tuple[float, float], column: np
 
 
 def statistic_of(stack: CodedCapture, code: Code, noise: tuple[float, float], column: np.ndarray) -> np.ndarray:
-    """`misfit_statistic` of a validated `CodedCapture`'s samples for the rows ``column``."""
-    return misfit_statistic(stack.frames, stack.white, stack.black, float(stack.scale), code,
+    """`misfit_statistic` of a validated `CodedCapture`'s samples for the rows ``column``, at the
+    error rule's scale (float32, as `edge.decode.decoder` gives the posterior)."""
+    return misfit_statistic(stack.frames, stack.white, stack.black, float(np.float32(stack.scale)), code,
                             np.where(np.asarray(column) >= 0, column, -1), noise, inverse=stack.inverse)
 
 

@@ -94,6 +94,10 @@ from .level_prior import C_FLOOR, LevelPrior, contrast_edges, cost_at, kernel_ar
 #: Smallest on - off contrast (normalised units) the split levels keep, so that the search
 #: kernels, which need white > black, decode every pixel.
 MIN_CONTRAST = 1e-6
+#: A normalised sample at or above this is at full scale.  Not 1.0: the error rule's scale is
+#: float32(1 / full scale), which takes full scale to within 6e-8 of 1 from either side (below 1
+#: for 10, 14 and 16 bits); the raw value under full scale is at least 1.5e-5 lower.
+FULL_SCALE_SAMPLE = 1.0 - 1e-6
 #: Fewer decoded pixels than this: the noise model is the settings' prior, not a fit.
 MIN_FIT_PIXELS = 500
 #: Competitors the search puts this far (in -2 log-likelihood) behind the best are not rescored:
@@ -144,6 +148,9 @@ class Posterior(NamedTuple):
         SKIP_MARGIN)`` where the second was not rescored; 0 where there is no second);
     contrast: float32 on - off level of the best candidate's fit (normalised units).
     noise: the `Noise` used.
+    misfit: float32 the goodness-of-fit statistic of candidates[..., 0]
+        (`edge.decode.misfit.misfit_statistic`'s values, bit for bit: its ``d_1``), NaN where
+        there is no candidate or a sample is at full scale.
     """
 
     candidates: np.ndarray
@@ -152,6 +159,7 @@ class Posterior(NamedTuple):
     confidence: np.ndarray
     contrast: np.ndarray
     noise: Noise
+    misfit: np.ndarray
 
 
 class TailTables(NamedTuple):
@@ -170,10 +178,10 @@ class TailTables(NamedTuple):
 
 @njit(cache=True, inline="always")
 def _clipped(buf, m):
-    """Whether any of the m normalised samples sits at 0 or at full scale (1): its residual is
-    censored, so the pixel is left out of the noise fit."""
+    """Whether any of the m normalised samples sits at 0 or at full scale (`FULL_SCALE_SAMPLE`):
+    its residual is censored, so the pixel is left out of the noise fit."""
     for i in range(m):
-        if buf[i] <= 0.0 or buf[i] >= 1.0:
+        if buf[i] <= 0.0 or buf[i] >= FULL_SCALE_SAMPLE:
             return True
     return False
 
@@ -290,7 +298,7 @@ def _split_levels(frames, white, black, scale, out_hi, out_lo, out_s2, out_mu):
                     h_, o_ = hi[l], lo[l]
                     e = v - (h_ if v > t[l] else o_)
                     ssr[l] += e * e
-                    clip[l] = clip[l] or v <= 0.0 or v >= 1.0
+                    clip[l] = clip[l] or v <= 0.0 or v >= FULL_SCALE_SAMPLE
             for l in range(min(L, width - x0)):
                 xx = x0 + l
                 out_s2[yy, xx] = ssr[l] / (m - 2) if not clip[l] else np.nan
@@ -761,13 +769,15 @@ def _interleaved(j, chunk, k):
 @njit(cache=True, parallel=True)
 def _posterior(frames, white, black, scale, xtab, cand, searched, a, beta, flips, tail_weight, binary,
                threads, ptab, pu0, pdu, pw0, pdw, pout, use_prior, out_cand, out_dist, out_err, out_gain, out_conf,
-               out_contrast, out_far, out_every, out_lbest, out_tail):
+               out_contrast, out_far, out_every, out_lbest, out_tail, out_misfit):
     """Step 3 per pixel but the tail mass, LANES pixels of a row at a time: the hypotheses' NLLs
     lane-parallel (`_lane_nll`, `_lane_flat`; `_nll` per lane where the code is not binary), then
     each pixel's ordering and odds.  out_err: the top three's P(confused) = far / (1 + every);
     out_tail (H, W) uint8: 1 where the tail mass is due (`_tail_pass` adds it), with the pixel's
     far, every and best -2 log-posterior lk[0] (float64) in out_far / out_every / out_lbest (left
-    as they are elsewhere).  Rows interleaved over the `threads` threads (`_interleaved`)."""
+    as they are elsewhere).  out_misfit (H, W) float32: the best candidate's Mahalanobis part
+    ``sum (r - mu)**2 / v`` (`edge.decode.misfit`'s statistic), NaN where there is no candidate
+    or a sample is at full scale.  Rows interleaved over the `threads` threads (`_interleaved`)."""
     n, height, width = frames.shape
     m = n + 2
     L = LANES
@@ -783,6 +793,7 @@ def _posterior(frames, white, black, scale, xtab, cand, searched, a, beta, flips
         buf = np.empty(m, np.float64)
         xs = np.empty(m, np.float64)
         sr = np.empty(L, np.float64)
+        top = np.empty(L, np.float64)
         rows = np.empty((3, L), np.int32)
         scored = np.empty((3, L), np.bool_)
         need = np.empty(3, np.bool_)
@@ -800,9 +811,11 @@ def _posterior(frames, white, black, scale, xtab, cand, searched, a, beta, flips
             _lane_samples(frames, white, black, scale, yy, x0, R)
             for l in range(L):
                 sr[l] = 0.0
+                top[l] = R[0, l]
             for i in range(m):
                 for l in range(L):
                     sr[l] += R[i, l]
+                    top[l] = max(top[l], R[i, l])
             any_scored = False
             for k in range(3):
                 need[k] = False
@@ -876,7 +889,9 @@ def _posterior(frames, white, black, scale, xtab, cand, searched, a, beta, flips
                     out_gain[yy, xx] = np.nan
                     out_conf[yy, xx] = 0.0
                     out_contrast[yy, xx] = 0.0
+                    out_misfit[yy, xx] = np.nan
                     continue
+                out_misfit[yy, xx] = mk[0] if top[l] < FULL_SCALE_SAMPLE else np.nan
                 out_gain[yy, xx] = flat[l] - plain
                 far = 0.0
                 every = 0.0
@@ -1357,9 +1372,10 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     far = np.empty((h, w), np.float64)
     every = np.empty((h, w), np.float64)
     lbest = np.empty((h, w), np.float64)
+    misfit = np.empty((h, w), np.float32)
     _posterior(samples, white, black, np.float64(scale), xtab, cand, searched, float(noise.a),
                float(noise.beta), tail.flips, float(tail.weight), bool(np.isin(xtab, (0.0, 1.0)).all()), threads,
-               *args[:7], out_cand, out_dist, competitors, gain, conf, contrast, far, every, lbest, due)
+               *args[:7], out_cand, out_dist, competitors, gain, conf, contrast, far, every, lbest, due, misfit)
     fdr, idx = _not_lit_lookup(gain, code, choices, has_inv)
     if tail.flips.size:
         _tail_pass(samples, white, black, np.float64(scale), xtab, code.n, out_cand, due, far, every, lbest, idx, fdr,
@@ -1368,7 +1384,7 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
                    contrast_edges(noise.levels), _skip_cost(tail.flips.size * tail.weight), competitors)
     err = np.empty((h, w), np.float32)
     _combine(idx, competitors, fdr, err)
-    return Posterior(out_cand, out_dist, err, conf, contrast, noise)
+    return Posterior(out_cand, out_dist, err, conf, contrast, noise, misfit)
 
 
 # ----------------------------------------------------------------------------- the "not lit" test

@@ -154,7 +154,8 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     (at most `FIT_PIXELS` pixels), the on / off levels where the ML search needs the CPU's
     per-pixel logs (no inverse frames), the subgrid fit stats, nb + 2 histogram counters down
     and the (nb + 1,) lookup up.  Returns device arrays candidates / distances (the posterior's:
-    re-ordered by likelihood, negative log-likelihoods), confidence, error, column0, column /
+    re-ordered by likelihood, negative log-likelihoods), confidence, error, column0, misfit (the
+    goodness-of-fit statistic of the best candidates, `posterior.Posterior.misfit`), column /
     valid (methods "soft" / "hard"; the others get them on the host in `finish`), ``rule``
     "error", stats (the search's + noise_a, noise_beta, noise_fitted, rule, levels, level_source,
     and ``side_downloads``: (name, bytes) of the intermediate downloads)."""
@@ -224,12 +225,13 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     far = buffer(buffers, "post_far", (h, w), np.float64, stream)
     every = buffer(buffers, "post_every", (h, w), np.float64, stream)
     lbest = buffer(buffers, "post_lbest", (h, w), np.float64, stream)
+    misfit = buffer(buffers, "misfit", (h, w), np.float32, stream)
     d_ptab = cuda.to_device(ptab, stream=stream)
     nflips = tb["nflips"]
     post_k.posterior_kernel[grid, post_k.TPB, stream](
         ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], cand, dist,
         float(SKIP_MARGIN), float(noise.a), float(noise.beta), nflips, tb["weight"], float(TAIL_FLOOR),
-        d_ptab, pu0, pdu, pw0, pdw, pout, use_prior, pc, pd, comp, gain, pconf, far, every, lbest, due)
+        d_ptab, pu0, pdu, pw0, pdw, pout, use_prior, pc, pd, comp, gain, pconf, far, every, lbest, due, misfit)
     median, nb = gain_bins(code, choices, ds.has_inv)
     counts = cuda.to_device(np.zeros(nb + 2, np.int64), stream=stream)
     post_k.gain_histogram[grid, post_k.TPB, stream](gain, float(GAIN_BIN), nb, float(median), counts)
@@ -255,7 +257,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     st = dict(st, noise_a=noise.a, noise_beta=noise.beta, noise_fitted=noise.fitted, rule="error",
               levels=s_in.levels, level_source=source, side_downloads=side)
     out = {"rule": "error", "candidates": pc, "distances": pd, "confidence": pconf, "error": err, "column0": col0,
-           "stats": st, "choices": choices, "rows": columns, "noise": noise}
+           "misfit": misfit, "stats": st, "choices": choices, "rows": columns, "noise": noise}
     if s.method in ("soft", "hard"):
         out["column"], out["valid"] = column, valid
     return out
@@ -292,7 +294,7 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     for `HOST_OUTPUTS`).  Fields not in `outputs` are None in the returned `Decoded`.  What is
     copied back (each array once, through `to_host`): methods "soft" / "hard" download exactly
     the wanted fields (column, valid come from the device's mask; under the "error" rule
-    ``error`` too, always, and the "list" / "median" methods take candidates, confidence and
+    ``error`` and ``misfit`` (the host's goodness-of-fit test) too, always, and the "list" / "median" methods take candidates, confidence and
     error to the host filters); confidence-rule "list" / "median" /
     "list+median" download candidates, confidence, column0 and eligible (the host stages
     `spatial_stage` + `valid_mask` need them) and distances only when wanted ("sgm": always).  The values of
@@ -317,7 +319,7 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
         names = ["candidates", "confidence", "column0", "eligible"] + (
             ["distances"] if "distances" in want or s.method == "sgm" else [])
     if rule == "error":
-        names.append("error")
+        names += ["error", "misfit"]
     host = {k: to_host(k, out[k], stream) for k in names}
     if stream != 0:
         stream.synchronize()
@@ -341,7 +343,7 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
             cand = host["candidates"]
         column, valid, cand, dist, err = publish_error_rule(
             stack, code, s, out["noise"], cand, host.get("distances"), host["error"], rows=out["rows"],
-            choices=out["choices"], stripe=stripe)
+            choices=out["choices"], stripe=stripe, misfit=host.pop("misfit"))
         if s.method not in ("soft", "hard"):
             host.update(candidates=cand, distances=dist)
         host["error"] = err

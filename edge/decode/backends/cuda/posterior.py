@@ -42,7 +42,7 @@ import numpy as np
 from numba import cuda
 
 from ...level_prior import C_FLOOR
-from ...posterior import TAIL_BLOCK, TAIL_REFIT_SHARE
+from ...posterior import FULL_SCALE_SAMPLE, TAIL_BLOCK, TAIL_REFIT_SHARE
 from .cost import MAX_N, mul64, pixel_of, sort_small
 
 TPB = 128
@@ -72,7 +72,7 @@ def _load(frames, inverse, ns, n, white, black, scale, yy, xx, buf):
 def _clipped(buf, m):
     """`posterior._clipped`: a sample at 0 or at full scale (the pixel stays out of the noise fit)."""
     for i in range(m):
-        if buf[i] <= 0.0 or buf[i] >= 1.0:
+        if buf[i] <= 0.0 or buf[i] >= FULL_SCALE_SAMPLE:
             return True
     return False
 
@@ -402,13 +402,15 @@ def _tail_mass(buf, xs, rk, lbest, count, ns, nbits, xtab, a, beta, packed, flip
 @cuda.jit
 def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, cand, searched, skip_margin, a, beta,
                      nflips, tail_weight, floor, ptab, pu0, pdu, pw0, pdw, pout, use_prior,
-                     out_cand, out_dist, out_comp, out_gain, out_conf, out_far, out_every, out_lbest, out_due):
+                     out_cand, out_dist, out_comp, out_gain, out_conf, out_far, out_every, out_lbest, out_due,
+                     out_misfit):
     """`posterior._posterior` (without the contrast output, which the decoder does not use):
     searched (H, W, 3) float32 the search's distances; candidates more than `skip_margin` behind
     the best are not rescored (kept after the scored ones with distance inf).  out_comp: the top
     three's P(confused) = far / (1 + every); out_due (H, W) uint8: 1 where the tail mass is due
     (`tail_kernel` adds it; nflips words of weight tail_weight, the gate of `_posterior`), with
-    the pixel's far, every and best -2 log-posterior in out_far / out_every / out_lbest."""
+    the pixel's far, every and best -2 log-posterior in out_far / out_every / out_lbest; out_misfit
+    (H, W) float32 the best candidate's goodness-of-fit statistic (`posterior.Posterior.misfit`)."""
     buf = cuda.local.array(MAX_M, np.float64)
     xs = cuda.local.array(MAX_M, np.float64)
     lk = cuda.local.array(3, np.float64)
@@ -459,7 +461,12 @@ def posterior_kernel(frames, inverse, has_inv, white, black, scale, xtab, cand, 
         out_comp[yy, xx] = 0.0
         out_gain[yy, xx] = np.nan
         out_conf[yy, xx] = np.float32(0.0)
+        out_misfit[yy, xx] = np.float32(np.nan)
         return
+    top = buf[0]
+    for i in range(ns + 2):
+        top = max(top, buf[i])
+    out_misfit[yy, xx] = np.float32(mk[0]) if top < FULL_SCALE_SAMPLE else np.float32(np.nan)
     l0, _m0, _c0, _b0 = _nll(buf, xs, 0, ns, xtab, a, beta, False)
     out_gain[yy, xx] = l0 - plain
     far = 0.0
