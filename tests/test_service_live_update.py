@@ -59,3 +59,60 @@ def test_live_geometry_update_changes_published_depth():
     first = uses_new.index(True)
     assert all(uses_new[first:]) and len(uses_new) - first >= 3, uses_new
     assert service.pipeline.geometry == new_geometry
+
+
+def _record_with_a_live_change(path, update):
+    """Run the service with a recording; apply `update` after two depth maps; stop three maps later."""
+    from edge.io.recording import RecordingThread
+
+    profile = load_test_profile()
+    sink = Collect()
+    recorder = RecordingThread(path, profile)
+    service = Service(profile, SimSensor(profile, max_speed=True), sinks=[sink], recorder=recorder)
+    changed = []
+
+    def tick(svc):
+        if not changed and svc.results_seen >= 2:
+            changed.append(svc.update_config(update))
+        elif changed and sum(r.profile is not None for r in sink.results) and svc.results_seen >= len(changed) + 5:
+            svc.stop()
+
+    try:
+        status = service.run(stacks=40, on_tick=tick)
+    finally:
+        recorder.close()
+    assert changed and status["config_updates"] == 1
+    return sink.results
+
+
+def test_a_recording_with_a_live_change_replays_bit_for_bit(tmp_path):
+    """The first stack decoded after a live change carries the new profile into the recording
+    (DepthResult.profile -> the /stack message), and replay switches pipelines there: every
+    stack matches, before and after the change (before, replay decoded everything with the
+    starting profile and every stack after the change differed)."""
+    from edge.io.replay import replay_recording
+
+    path = tmp_path / "change.mcap"
+    results = _record_with_a_live_change(path, {"decoder": {"method": "median", "max_error": 0.02}})
+    marked = [r for r in results if r.profile is not None]
+    assert len(marked) == 1 and marked[0].profile["decoder"]["method"] == "median"
+    first = results.index(marked[0])
+    assert first >= 2 and len(results) - first >= 3
+    report = replay_recording(path)
+    assert report.ok, report.lines()
+    assert report.profile_changes == 1 and report.stacks_matched == report.stacks_compared >= 5
+
+
+def test_an_older_recording_with_a_live_change_says_why_it_differs(tmp_path, monkeypatch):
+    """A recording whose stacks do not carry the changed profile (made before they did) replays
+    with the starting profile; its mismatches come with the reason."""
+    import edge.io.recording as recording
+    from edge.io.replay import replay_recording
+
+    plain = recording.stack_info
+    monkeypatch.setattr(recording, "stack_info", lambda r: {k: v for k, v in plain(r).items() if k != "profile"})
+    path = tmp_path / "old.mcap"
+    _record_with_a_live_change(path, {"decoder": {"method": "median", "max_error": 0.02}})
+    report = replay_recording(path)
+    assert not report.ok and report.profile_changes == 0
+    assert "live config changes" in report.mismatches[-1], report.lines()

@@ -23,10 +23,12 @@ topic                       schema (encoding)           content
                                                         written between depth and confidence
 ``/<device>/output_info``   edge.OutputInfo (json)      one per depth map, just before it:
                                                         stack, sequence, timestamp_ns + extras
-``/<device>/stack``         edge.StackInfo (json)       one per decoded stack, after its depth:
+``/<device>/stack``         edge.StackInfo (json)       one per decoded stack, before its depth:
                                                         stack, sequence, frames, extra_frames,
                                                         edc_rounds, received_ns, decode_ms,
-                                                        edc_round_ms, edc_capture_ms, stats
+                                                        edc_round_ms, edc_capture_ms, stats;
+                                                        profile on the first stack a live
+                                                        change decoded (replay switches there)
                                                         (`edge.io.recording.stack_info`)
 ``/<device>/calibration``   foxglove.CameraCalibration  camera intrinsics from the profile
                             (pb)                        geometry (plumb_bob, zero distortion):
@@ -50,7 +52,8 @@ images, calibration and points are in ``<name>_optical_frame``, so Foxglove proj
 image and draws the cloud in one frame tree.
 
 ``/<device>/config_change`` (edge.ConfigChange, json) holds every config update the running service
-accepted: time_ns, keys, update, profile (`edge.io.recording`).
+accepted: time_ns, keys, update, profile (`edge.io.recording`), at the time it was accepted; the
+stack from which it decoded is the one whose ``/<device>/stack`` message carries the profile.
 
 Further topics are added through `edge.io.mcap_writer.Recorder.register_channel` (same
 ``/<device>/<leaf>`` naming); `topics` lists the standard ones that every recording has.
@@ -125,6 +128,7 @@ JSON_SCHEMAS: dict[str, dict[str, Any]] = {
             "received_ns": {"type": "integer"}, "decode_ms": {"type": "number"},
             "edc_round_ms": {"type": "array", "items": {"type": "number"}},
             "edc_capture_ms": {"type": "array", "items": {"type": "number"}}, "stats": {"type": "object"},
+            "profile": {"type": "object"},
         },
     },
 }

@@ -203,6 +203,7 @@ class RecordingReader:
         self.problem: str | None = None
         self.problems: list[str] = []       # every problem of the last pass, first one in ``problem``
         self.chunks_skipped = 0             # corrupt chunks skipped in the last pass
+        self.leaves_seen: set[str] = set()  # topics' last parts seen by the last frames / outputs / stacks pass
         if os.path.isdir(self.path):
             raise RecordingError(f"{self.path}: is a directory, expected an MCAP recording file")
         try:
@@ -379,11 +380,14 @@ class RecordingReader:
                 yield item
 
     def _events(self) -> Iterator[Any]:
-        """RecordedFrame, RecordedOutput and ("stack", dict) items in file order."""
+        """RecordedFrame, RecordedOutput and ("stack", dict) items in file order (the topics' last
+        parts seen so far are in ``leaves_seen``)."""
         infos: dict[int, dict[str, Any]] = {}
         outputs = OutputPairs()
+        self.leaves_seen.clear()
         for m in self.messages():
             leaf = m.topic.rsplit("/", 1)[-1]
+            self.leaves_seen.add(leaf)
             if leaf == "raw_info":
                 infos[m.sequence] = m.value
             elif leaf == "raw":

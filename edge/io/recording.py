@@ -36,12 +36,15 @@ def stack_info(result: DepthResult) -> dict[str, Any]:
     replayed stack with fewer raw frames in the file lost some to the recorder) and how many masked
     EDC frames followed (``extra_frames``), its first frame's ``sequence``, when its last frame
     arrived (``received_ns``), the live decode time (``decode_ms``, EDC ``edc_round_ms`` /
-    ``edc_capture_ms``) and the pipeline's per-stack counters (``stats``)."""
+    ``edc_capture_ms``) and the pipeline's per-stack counters (``stats``); on the first stack decoded
+    after a live configuration change, ``profile``: the whole profile that decoded it
+    (`DepthResult.profile`; `edge.io.replay` switches to it at this stack)."""
     return {"stack": int(result.stack), "sequence": int(result.sequence), "frames": int(result.stack_frames),
             "extra_frames": len(result.extra_frames), "edc_rounds": int(result.edc_rounds),
             "received_ns": int(result.received_ns), "decode_ms": round(result.decode_s * 1e3, 3),
             "edc_round_ms": list(result.edc_round_ms), "edc_capture_ms": list(result.edc_capture_ms),
-            "stats": {k: int(v) for k, v in result.stats.items()}}
+            "stats": {k: int(v) for k, v in result.stats.items()},
+            **({} if result.profile is None else {"profile": result.profile})}
 
 class EdgeRecorder(Recorder):
     """`Recorder` plus `write_events`: event slices on ``/<device>/events`` (schema ``edge.EventSlice``,
@@ -280,11 +283,12 @@ class RecordingThread:
                 from edge.runtime.points import result_points
 
                 pts = result_points(r, rec.profile.geometry, settings.stride)
+            # the stack's info first: `RecordingReader.stacks` hands a stack on once its depth is in
+            rec.write_stack(stack_info(r), timestamp_ns=r.timestamp_ns)
             rec.write_depth(r.depth_mm, r.confidence, timestamp_ns=r.timestamp_ns, stack=r.stack,
                             sequence=r.sequence, edc_rounds=r.edc_rounds,
                             valid_fraction=round(r.valid_fraction, 6), points=pts,
                             geometry=r.geometry, error=r.error)
-            rec.write_stack(stack_info(r), timestamp_ns=r.timestamp_ns)
             self.outputs_written += 1
             self._per_file[rec.path][1] += 1
             if rec is self._old and r.stack >= self._old_last_stack:

@@ -6,6 +6,11 @@ counted), runs the same `DepthPipeline.process` (EDC rounds get the recorded mas
 and compares depth (and confidence) with what the service recorded, bit for bit.  Every profile
 kind replays through its own pipeline (`make_pipeline`); an event recording (``event-dots``) is
 read slice by slice from its ``/<device>/events`` topic (`edge.io.event_record.event_stacks`).
+A live configuration change the service accepted while recording is replayed from the stack it
+first decoded (the ``profile`` of that stack's ``/<device>/stack`` message, `stack_info`): the
+pipeline is rebuilt with the recorded profile there.  Recordings made before stacks carried it
+hold the change on ``/<device>/config_change`` only; their stacks after it are compared against
+the starting profile, and the report says so.
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ class ReplayReport:
     stacks_matched: int = 0
     stacks_without_output: int = 0
     stacks_incomplete: int = 0
+    profile_changes: int = 0
     mismatches: list[str] = field(default_factory=list)
     problem: str = ""
 
@@ -44,7 +50,8 @@ class ReplayReport:
         out = [f"{self.path}: profile {self.profile!r}, {self.stacks_read} stacks read, "
                f"{self.stacks_compared} compared, {self.stacks_matched} bit-exact, "
                f"{len(self.mismatches)} differ, {self.stacks_without_output} complete without a recorded "
-               f"output (not decoded by the service), {self.stacks_incomplete} incomplete (dropped)"]
+               f"output (not decoded by the service), {self.stacks_incomplete} incomplete (dropped)"
+               + (f", {self.profile_changes} live profile change(s) replayed" if self.profile_changes else "")]
         out += [f"  mismatch: {m}" for m in self.mismatches[:20]]
         if self.problem:
             out.append(f"  problem: {self.problem}")
@@ -90,6 +97,10 @@ def replay_recording(path: str | os.PathLike[str], *, expected_profile: Any = No
             report.stacks_read += 1
             regular = [to_frame(f) for f in recorded.frames if parse_projector_frame(f.projector_frame).edc_round == 0]
             masked = [to_frame(f) for f in recorded.frames if parse_projector_frame(f.projector_frame).edc_round > 0]
+            changed = (recorded.info or {}).get("profile")
+            if changed is not None:  # a live change took effect at this stack: decode as the service did
+                pipeline = make_pipeline(_changed_profile(path, recorded.stack, changed))
+                report.profile_changes += 1
             stack = None
             for frame in regular:
                 stack = assembler.push(frame, received_ns=frame.timestamp_ns) or stack
@@ -116,7 +127,24 @@ def replay_recording(path: str | os.PathLike[str], *, expected_profile: Any = No
     report.stacks_incomplete = assembler.counters.stacks_incomplete
     if reader.problem and not report.problem:
         report.problem = reader.problem
+    if report.mismatches and not report.profile_changes and "config_change" in reader.leaves_seen:
+        report.mismatches.append("the recording holds live config changes (/config_change) but no stack says "
+                                 "where they took effect (recorded before stacks carried their profile): the "
+                                 "stacks after a change were decoded with the starting profile")
     return report
+
+
+def _changed_profile(path: str | os.PathLike[str], stack_id: int, data: Any):
+    """The `Profile` a recorded stack's info names (a live change); `RecordingError` if invalid."""
+    from edge.io.mcap import RecordingError
+    from edge.io.mcap_reader import recorded_profile_dict
+    from edge.profiles import ProfileError, profile_from_dict
+
+    try:
+        return profile_from_dict(recorded_profile_dict(data), source=f"{os.fspath(path)} (stack {stack_id})")
+    except (ValueError, ProfileError) as exc:
+        raise RecordingError(f"{os.fspath(path)}: the profile recorded at stack {stack_id} (a live change) is "
+                             f"invalid: {exc}") from None
 
 
 def _compare(report: ReplayReport, stack_id: int, result: DepthResult, out: Any,
@@ -173,4 +201,21 @@ def _replay_events(reader: Any, pipeline: Any, assembler: StackAssembler, report
     report.stacks_incomplete = assembler.counters.stacks_incomplete
     if reader.problem and not report.problem:
         report.problem = reader.problem
+    if report.mismatches and not report.profile_changes and "config_change" in reader.leaves_seen:
+        report.mismatches.append("the recording holds live config changes (/config_change) but no stack says "
+                                 "where they took effect (recorded before stacks carried their profile): the "
+                                 "stacks after a change were decoded with the starting profile")
     return report
+
+
+def _changed_profile(path: str | os.PathLike[str], stack_id: int, data: Any):
+    """The `Profile` a recorded stack's info names (a live change); `RecordingError` if invalid."""
+    from edge.io.mcap import RecordingError
+    from edge.io.mcap_reader import recorded_profile_dict
+    from edge.profiles import ProfileError, profile_from_dict
+
+    try:
+        return profile_from_dict(recorded_profile_dict(data), source=f"{os.fspath(path)} (stack {stack_id})")
+    except (ValueError, ProfileError) as exc:
+        raise RecordingError(f"{os.fspath(path)}: the profile recorded at stack {stack_id} (a live change) is "
+                             f"invalid: {exc}") from None

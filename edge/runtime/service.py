@@ -99,6 +99,7 @@ class Service:
         self._capture_done = threading.Event()
         self._threads: list[threading.Thread] = []
         self._pending_profile = None
+        self._profile_to_record: dict[str, Any] | None = None  # a change's profile, for its first decoded stack
         self._lock = threading.Lock()
         self._latency_s: deque[float] = deque(maxlen=256)
         self._decode_s: deque[float] = deque(maxlen=256)
@@ -302,8 +303,11 @@ class Service:
             with self._lock:
                 pending, self._pending_profile = self._pending_profile, None
             if pending is not None:
+                from edge.profiles import profile_to_dict
+
                 self._use_pipeline(pending[1])
                 self._change = {"keys": list(pending[2]), "decode_s": []}
+                self._profile_to_record = profile_to_dict(pending[0])
             try:
                 check_frame_size(stack.frames, self.profile.camera)
                 result = self.pipeline.process(stack, masked)
@@ -317,6 +321,9 @@ class Service:
                     self._stop.set()
                 continue
             failures = 0
+            if self._profile_to_record is not None:  # the first stack this profile decoded: say so in the recording
+                result = dataclasses.replace(result, profile=self._profile_to_record)
+                self._profile_to_record = None
             self.counters.stacks_decoded += 1
             self._check_budget(result.decode_s)
             self._deliver(result)
