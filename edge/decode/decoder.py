@@ -67,7 +67,7 @@ from .search import METRICS, band_args, check_call, search_candidates
 from .settings import DEFAULT_SETTINGS, METHODS, DecodeSettings
 from .sgm import Regularised
 from .sgm import from_posterior as sgm_from_posterior
-from .spatial import error_rule_spatial, spatial_stage
+from .spatial import error_rule_spatial, published_error, spatial_stage
 from .validity import eligibility, valid_mask
 
 __all__ = ["DEFAULTS", "METHODS", "METRICS", "Q_SCALE", "Decoded", "decode", "decode_refined"]
@@ -97,7 +97,10 @@ class Decoded:
         `DecodeSettings.level_source`) and the fitted noise model ``noise_a`` / ``noise_beta`` (variance
         ``a + beta * I``, normalised units) with ``noise_fitted``.
     error: (H, W) float32 estimated probability that ``candidates[..., 0]`` is more than one
-        codebook row off (`edge.decode.posterior`; the "error" validity rule), else None.  Under
+        codebook row off (`edge.decode.posterior`; the "error" validity rule), else None; with
+        methods "list" / "median", where the method published another candidate, that
+        candidate's (`edge.decode.spatial.published_error`: the pixel's own evidence, so it may be
+        above ``max_error`` where neighbours' support published the column).  Under
         that rule candidates / distances are the posterior's (re-ordered by it, distances the
         negative log-likelihoods plus the capture's level prior, `edge.decode.level_prior`) and
         confidence is ``(d2 - d1) / d2`` of their Mahalanobis parts; with method "sgm", candidates are re-ordered by aggregated cost and error is the
@@ -251,11 +254,13 @@ def publish_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, noise
     the method ("soft" / "hard": P(wrong) < max_error; "list" / "median": `error_rule_spatial`;
     "sgm": `sgm_stage`), and no published column that misfits.  candidates (H, W, 3) int32 (the
     CUDA backend's soft path: its published columns in [..., 0], -1 elsewhere), distances (H, W,
-    3) or None (not "sgm"), error (H, W) float32 P(wrong) of candidates[..., 0]; misfit (H, W)
+    3) (required by "sgm", "list" and "median") or None, error (H, W) float32 P(wrong) of
+    candidates[..., 0]; misfit (H, W)
     float32 the posterior's goodness-of-fit statistic of its best candidates (`Posterior.misfit`),
     or None to compute it from the samples.  Returns
     (column (H, W) int32 -1 where invalid, valid, candidates, distances, error): the error is the
-    posterior's (among the searched codewords), with "sgm" the regularised one."""
+    posterior's (among the searched codewords), with "sgm" the regularised one, with "list" /
+    "median" that of the column published (`published_error`)."""
     column0 = np.ascontiguousarray(candidates[..., 0])
     target = s.max_error  # the one error-probability target
     seen, threshold = check_fit(stack, code, (noise.a, noise.beta), column0, error, target, misfit)
@@ -272,6 +277,8 @@ def publish_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, noise
     if s.method not in ("soft", "hard"):  # a column the method chose must explain the samples too
         valid = valid & fits(stack, code, (noise.a, noise.beta), column, threshold)
         column = np.where(valid, column, -1).astype(np.int32)
+    if s.method in ("list", "median", "list+median"):  # the error of the column published, not of the best
+        error = published_error(candidates, distances, error, column)
     return column, valid, candidates, distances, error
 
 

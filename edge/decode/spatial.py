@@ -474,6 +474,40 @@ def error_rule_spatial(settings: DecodeSettings, candidates: np.ndarray, error: 
     return column, column >= 0
 
 
+def published_error(candidates: np.ndarray, distances: np.ndarray, error: np.ndarray,
+                    column: np.ndarray) -> np.ndarray:
+    """P(wrong) of the column a spatial method published (methods "list" / "median" under the
+    "error" rule), from the pixel's own evidence: where ``column`` is one of the candidates other
+    than the best, ``1 - (1 - error) * near_j / near_0``, with ``near_i`` the posterior mass
+    ``sum exp(-(P_k - P_0) / 2)`` of the candidates k within one codebook row of candidate i
+    (P_k the distances, -2 log-posterior; inf = not scored, no mass).  Since ``1 - error`` is
+    the best candidate's near mass over the whole mass (the not-lit probability and the tail
+    beyond the top three included), this is the chosen column's share of the same whole, so
+    nothing the top three do not hold is assumed.  A column within one row of no candidate gets
+    1.  Elsewhere ``error`` as given (the column is the best candidate's, or none).  The
+    neighbours' support that made the method publish the column is not in the value: it is
+    what the pixel alone says, so it may exceed ``max_error`` on published pixels.
+
+    candidates (H, W, 3) int32 rows best-first (-1 absent), distances (H, W, 3), error (H, W)
+    float32 P(wrong) of candidates[..., 0], column (H, W) int32 rows (-1 invalid) -> (H, W) float32.
+    """
+    moved = (column >= 0) & (column != candidates[..., 0])
+    out = np.array(error, np.float32, copy=True)
+    if not moved.any():
+        return out
+    cand = candidates[moved].astype(np.int64)
+    d = np.asarray(distances, np.float64)[moved]
+    with np.errstate(invalid="ignore", over="ignore"):
+        mass = np.exp(-0.5 * np.minimum(d - d[:, :1], 1400.0))
+    mass = np.where((cand >= 0) & np.isfinite(mass), mass, 0.0)
+    mass[:, 0] = 1.0
+    near_best = (mass * (np.abs(cand - cand[:, :1]) <= 1)).sum(1)
+    near_chosen = (mass * (np.abs(cand - column[moved][:, None].astype(np.int64)) <= 1)).sum(1)
+    p_right = (1.0 - out[moved].astype(np.float64)) * near_chosen / near_best
+    out[moved] = np.clip(1.0 - p_right, 0.0, 1.0).astype(np.float32)
+    return out
+
+
 def spatial_stage(settings: DecodeSettings, candidates: np.ndarray, confidence: np.ndarray, column: np.ndarray,
                   eligible: np.ndarray, *, stripe: int, distances: np.ndarray | None = None,
                   choices: int | None = None, fill: bool = True) -> Spatial:

@@ -294,8 +294,9 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     for `HOST_OUTPUTS`).  Fields not in `outputs` are None in the returned `Decoded`.  What is
     copied back (each array once, through `to_host`): methods "soft" / "hard" download exactly
     the wanted fields (column, valid come from the device's mask; under the "error" rule
-    ``error`` and ``misfit`` (the host's goodness-of-fit test) too, always, and the "list" / "median" methods take candidates, confidence and
-    error to the host filters); confidence-rule "list" / "median" /
+    ``error`` and ``misfit`` (the host's goodness-of-fit test) too, always, and the "list" /
+    "median" / "sgm" methods take candidates, confidence, distances and error to the host
+    stages); confidence-rule "list" / "median" /
     "list+median" download candidates, confidence, column0 and eligible (the host stages
     `spatial_stage` + `valid_mask` need them) and distances only when wanted ("sgm": always).  The values of
     the fields returned do not depend on `outputs`.  stats gains ``downloaded`` (the names
@@ -314,7 +315,7 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     if s.method in ("soft", "hard"):
         names = [f for f in FIELDS if f in want or (rule == "error" and f in ("column", "valid"))]
     elif rule == "error":
-        names = ["candidates", "confidence"] + (["distances"] if "distances" in want or s.method == "sgm" else [])
+        names = ["candidates", "confidence", "distances"]  # the methods' published error needs the distances
     else:
         names = ["candidates", "confidence", "column0", "eligible"] + (
             ["distances"] if "distances" in want or s.method == "sgm" else [])
