@@ -31,7 +31,7 @@ def _pairs(text: str) -> list[tuple[int, int]]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--iterations", type=int, default=20000, help="tabu moves per seed (all restarts)")
     parser.add_argument("--restarts", type=int, default=4)

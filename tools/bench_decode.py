@@ -299,7 +299,7 @@ def hard_regime(args, report_row) -> None:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--height", type=int, default=600)
     p.add_argument("--width", type=int, default=700)
     p.add_argument("--repeats", type=int, default=5)

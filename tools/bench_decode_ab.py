@@ -52,7 +52,7 @@ def child(repeats: int) -> int:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--base", type=Path, help="the other checkout (its repository root; required)")
     p.add_argument("--pairs", type=int, default=5, help="runs per checkout (default 5)")
     p.add_argument("--repeats", type=int, default=7, help="timed calls per run (default 7)")

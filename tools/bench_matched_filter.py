@@ -59,7 +59,7 @@ def synthetic_events(n: int, w: int, h: int, code, slot_us: int, rng) -> np.ndar
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--events", type=int, default=4_000_000)
     args = ap.parse_args()

@@ -85,7 +85,7 @@ def write(path: str, frames: list[np.ndarray], encoding: str, compression: Compr
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--frames", type=int, default=120)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--compression", choices=["zstd", "lz4", "none"], default="zstd")

@@ -102,7 +102,7 @@ def check_capture(contrib: Path, capture: Path, sample: int) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--opencv-contrib", required=True, type=Path,
                    help="directory holding opencv-contrib-python-headless (pip install --target DIR --no-deps ...)")
     p.add_argument("--capture", type=Path, default=None,

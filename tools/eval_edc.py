@@ -13,7 +13,7 @@ from edge.eval.edc import run_report
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "docs" / "results" / "edc")
     p.add_argument("--width", type=int, default=256)
     p.add_argument("--height", type=int, default=192)

@@ -155,7 +155,7 @@ about 3 mm). Holes are the black squares (too little contrast) and the shiny tap
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--capture", default=CAPTURE, help=f"capture directory (default {CAPTURE})")
     p.add_argument("--calibration", default=CALIBRATION, help=f"calibration file (default {CALIBRATION})")
     p.add_argument("--out", type=Path, default=REPO / "docs" / "results" / "procam", help="output folder")

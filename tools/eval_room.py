@@ -200,7 +200,7 @@ def devices_table(out: Path, max_n: int) -> str:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default=str(ROOT / "docs" / "results" / "room"))
     ap.add_argument("--max-devices", type=int, default=8)
     ap.add_argument("--pixels", type=int, default=2000, help="pixels of the slot-level simulation")

@@ -105,7 +105,7 @@ def curtain(out: Path, w: int, h: int) -> None:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "docs" / "results" / "source"))
     ap.add_argument("--size", default="320x240")
     args = ap.parse_args()

@@ -75,7 +75,7 @@ reference_decoder.methods = ("soft", "hard")  # type: ignore[attr-defined]
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="small images, one seed, 5 ratios")
     ap.add_argument("--out", type=Path, default=Path("docs/results/eval"))
     ap.add_argument("--decoder", choices=("edge", "reference"), default="edge")

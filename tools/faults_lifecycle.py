@@ -420,7 +420,7 @@ def _rows(full: bool, work: Path) -> list[dict[str, Any]]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--full", action="store_true", help=">= 20 signal points, warm and cold numba cache")
     args = ap.parse_args()
     for row in rows(args.full):

@@ -21,7 +21,7 @@ def register(subparsers: Any) -> None:
                     "connect to it; routers connected to each other with --connect form a mesh. Prints "
                     "transport events; stops on SIGINT/SIGTERM or after --seconds.")
     p.add_argument("--listen", action="append", required=True, metavar="ENDPOINT",
-                   help="endpoint(s) to listen on, e.g. tcp/0.0.0.0:7450 (repeatable)")
+                   help="endpoint(s) to listen on, e.g. tcp/0.0.0.0:7447 (repeatable)")
     p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
                    help="other router(s) of the mesh (repeatable; retried while they are down)")
     p.add_argument("--seconds", type=float, default=None, metavar="S", help="stop after S seconds")

@@ -360,7 +360,7 @@ def _run_service(args: argparse.Namespace, holder: dict[str, Any], received: lis
               + (f", Foxglove ws://127.0.0.1:{args.foxglove}" if getattr(args, "foxglove", None) is not None else "")
               + (f", recording {args.record}" if args.record else ""), flush=True)
         if not args.quiet:
-            print("compiling / loading decoder kernels (about a minute on the very first run) ...", flush=True)
+            print("compiling / loading decoder kernels (about two minutes on a 2-core host on the very first run) ...", flush=True)
         if service.warm_up() and not args.quiet:
             print(f"decoder ready in {service.warm_up_s:.1f} s", flush=True)
         status = service.run(stacks=args.stacks, seconds=args.seconds)

@@ -187,7 +187,7 @@ class DepthPipeline:
 
         Decodes a small synthetic stack (8 rows x 64 columns, the camera's dtype, the profile's
         method and disparity band) so that the first real stack is not delayed by compilation
-        (about a minute with an empty cache on a 2-core machine, well under a second from the cache), and runs
+        (about two minutes with an empty cache on a 2-core machine, well under a second from the cache), and runs
         two EDC rounds on it (the check of the stack and a re-decode of its failing pixels: the
         sparse kernels of `edge.edc`, so ``edc.rounds`` can be switched on without a compile
         pause).  Returns the seconds spent.
