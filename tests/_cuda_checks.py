@@ -707,7 +707,8 @@ def check_service_staged(name):
         def warm_up(self):
             return 0.0
 
-    profile = load_test_profile(decoder={**CONFIDENCE_RULE, "backend": "cuda"})
+    small = {"width": 24, "height": 3}  # the service refuses frames of another size than the profile camera's
+    profile = load_test_profile(decoder={**CONFIDENCE_RULE, "backend": "cuda"}, camera=small)
     pipe = NoWarmUp(profile)
     imgs = stacks_for(pipe.code, 3)
     m = len(pipe.schedule)
@@ -752,8 +753,8 @@ def check_service_staged(name):
     svc = Service(profile, ListSensor(), sinks=[sink], queue_capacity=8, pipeline_factory=NoWarmUp,
                   warm_variants=False)
     status = svc.run(stacks=3)
-    cpu_pipe = DepthPipeline(load_test_profile(decoder={**CONFIDENCE_RULE, "min_confidence": 0.6}))
-    old_pipe = DepthPipeline(load_test_profile(decoder=CONFIDENCE_RULE))
+    cpu_pipe = DepthPipeline(load_test_profile(decoder={**CONFIDENCE_RULE, "min_confidence": 0.6}, camera=small))
+    old_pipe = DepthPipeline(load_test_profile(decoder=CONFIDENCE_RULE, camera=small))
     good = len(sink.results) == 3 and status.get("gpu_stacks_staged") == 3 and seen.get("prepared")
     differs = False
     for r in sink.results:
