@@ -229,4 +229,8 @@ def test_depth_matches_formula_on_random_columns_and_stripes():
 def test_confidence_to_u8():
     c = np.array([[0.0, 0.5, 1.0, np.nan, 2.0]], dtype=np.float32)
     assert confidence_to_u8(c).tolist() == [[0, 128, 255, 0, 255]]
-    assert confidence_to_u8(c, np.array([[1, 0, 1, 1, 1]], bool)).tolist() == [[0, 0, 255, 0, 255]]
+    # 0 means invalid on the wire: a valid pixel gets at least 1, however low its confidence
+    assert confidence_to_u8(c, np.array([[1, 0, 1, 1, 1]], bool)).tolist() == [[1, 0, 255, 1, 255]]
+    low = np.array([[0.001, 0.001]], np.float32)
+    assert confidence_to_u8(low).tolist() == [[0, 0]]
+    assert confidence_to_u8(low, np.array([[True, False]])).tolist() == [[1, 0]]

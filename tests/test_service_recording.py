@@ -204,3 +204,33 @@ def test_recording_from_before_the_error_rule_replays_with_its_rule():
     assert from_profile(build_profile(data)).rule(False) == "error"  # what it would decode with otherwise
     now = profile_to_dict(load_test_profile())
     assert recorded_profile_dict(now) == now
+
+
+def test_replay_takes_an_older_recordings_zero_confidence_on_valid_depth():
+    """Recordings made before valid pixels got a confidence of at least 1 hold 0 there; their
+    replay computes 1 and that alone is not a mismatch (any other difference still is)."""
+    from types import SimpleNamespace
+
+    from edge.io.replay import ReplayReport, _compare
+
+    depth = np.array([[0, 1500, 1600]], np.uint16)
+    out = SimpleNamespace(depth_mm=depth, confidence=np.array([[0, 0, 40]], np.uint8), error=None)
+    now = SimpleNamespace(depth_mm=depth, confidence=np.array([[0, 1, 40]], np.uint8), error=None)
+    report = ReplayReport("x")
+    _compare(report, 0, now, out, None)
+    assert report.stacks_matched == 1 and not report.mismatches
+    other = SimpleNamespace(depth_mm=depth, confidence=np.array([[1, 0, 40]], np.uint8), error=None)
+    _compare(report, 1, other, out, None)  # 1 on invalid depth: a real difference
+    assert report.stacks_matched == 1 and len(report.mismatches) == 1
+
+
+def test_a_recording_cut_before_its_profile_is_named_truncated(tmp_path):
+    """A file cut inside its first records (before the profile metadata) was reported as holding
+    no edge profile; it is a truncated file."""
+    from edge.io.mcap import RecordingError
+    from edge.io.replay import replay_recording
+
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(COMMITTED.read_bytes()[:1000])
+    with pytest.raises(RecordingError, match=r"truncated or corrupt MCAP at byte \d+ of 1000.*ends before its profile"):
+        replay_recording(cut)

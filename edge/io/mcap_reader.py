@@ -204,6 +204,7 @@ class RecordingReader:
         self.problems: list[str] = []       # every problem of the last pass, first one in ``problem``
         self.chunks_skipped = 0             # corrupt chunks skipped in the last pass
         self.leaves_seen: set[str] = set()  # topics' last parts seen by the last frames / outputs / stacks pass
+        self.head_problem: str | None = None  # the first problem before the first message, if any
         if os.path.isdir(self.path):
             raise RecordingError(f"{self.path}: is a directory, expected an MCAP recording file")
         try:
@@ -228,14 +229,20 @@ class RecordingReader:
 
     def _read_head(self) -> None:
         with open(self.path, "rb") as f:
-            for record, _ in RecordScanner(f, self.total_bytes, head_only=True):
+            scan = RecordScanner(f, self.total_bytes, head_only=True)
+            for record, _ in scan:
                 if isinstance(record, Metadata):
                     self._metadata[record.name] = dict(record.metadata)
                 elif isinstance(record, Attachment):
                     self._attachments[record.name] = bytes(record.data)
                 elif isinstance(record, Message):
                     break
-            # problems are reported by the full pass
+            # problems are reported by the full pass; the head's first one is kept for a file that
+            # ends before its metadata (`head_problem`)
+            if scan.problems:
+                offset, reason = scan.problems[0][:2]
+                self.head_problem = (f"{self.path}: truncated or corrupt MCAP at byte {offset} of "
+                                     f"{self.total_bytes}: {reason}")
 
     def _load_profile(self) -> Profile | None:
         meta = self._metadata.get(PROFILE_METADATA)

@@ -79,11 +79,14 @@ def column_to_depth_mm(column: np.ndarray, geometry: DepthGeometry, *, stripe: i
 
 
 def confidence_to_u8(confidence: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
-    """(H, W) float confidence in [0, 1] -> uint8 0..255 (higher = more confident), 0 where invalid."""
+    """(H, W) float confidence in [0, 1] -> uint8 0..255 (higher = more confident), 0 where invalid
+    and, given ``valid``, at least 1 where valid (0 means invalid on the wire: a valid pixel whose
+    confidence rounds to 0 would be dropped by a consumer that filters on confidence > 0)."""
     c = np.asarray(confidence, dtype=np.float64)
     out = np.rint(np.clip(np.nan_to_num(c, nan=0.0), 0.0, 1.0) * 255.0).astype(np.uint8)
     if valid is not None:
-        out[~np.asarray(valid, dtype=bool)] = 0
+        ok = np.asarray(valid, dtype=bool)
+        out = np.where(ok, np.maximum(out, np.uint8(1)), np.uint8(0)).astype(np.uint8)
     return out
 
 

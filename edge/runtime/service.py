@@ -121,7 +121,10 @@ class Service:
         if self.warm_variants:
             from .warmup import switchable_variants
 
-            self._variant_labels = {label for label, _ in switchable_variants(profile)}
+            variants = switchable_variants(profile)
+            self._variant_labels = {label for label, _ in variants}
+            if variants:  # the starting method is warm too: a change can always be switched back
+                self._variant_labels.add(f"decoder.method={profile.decoder.method}")
         self.log = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
         self.fault = ""              # why the service stopped itself (sensor failure, persistent decode errors)
         self.warnings: list[str] = []

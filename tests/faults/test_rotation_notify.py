@@ -236,6 +236,9 @@ def test_switch_to_a_variant_that_failed_to_compile_or_does_not_fit_is_refused()
     with pytest.raises(ValueError, match="for a 'columns' projector|does not fit this profile's pipeline"):
         service.update_config({"decoder": {"method": "curtain"}})  # accepted before: then 10 failures, exit 0
     assert service.update_config({"decoder": {"method": "list"}}).decoder.method == "list"
+    # and back to the profile's own method (its pipeline is the warm one; it was refused as not
+    # fitting the profile, so a method change could only be undone by a restart)
+    assert service.update_config({"decoder": {"method": "soft"}}).decoder.method == "soft"
     assert service.update_config({"edc": {"rounds": 1}}).edc.rounds == 1
 
 
