@@ -61,20 +61,21 @@ def test_live_geometry_update_changes_published_depth():
     assert service.pipeline.geometry == new_geometry
 
 
-def _record_with_a_live_change(path, update):
-    """Run the service with a recording; apply `update` after two depth maps; stop three maps later."""
+def _record_with_a_live_change(path, update, **recording):
+    """Run the service with a recording; apply `update` after two depth maps; stop five maps after
+    the first one the new profile decoded.  Returns the results."""
     from edge.io.recording import RecordingThread
 
     profile = load_test_profile()
     sink = Collect()
-    recorder = RecordingThread(path, profile)
+    recorder = RecordingThread(path, profile, **recording)
     service = Service(profile, SimSensor(profile, max_speed=True), sinks=[sink], recorder=recorder)
     changed = []
 
     def tick(svc):
         if not changed and svc.results_seen >= 2:
             changed.append(svc.update_config(update))
-        elif changed and sum(r.profile is not None for r in sink.results) and svc.results_seen >= len(changed) + 5:
+        elif changed and sum(r.profile == changed[0] for r in list(sink.results)) >= 5:
             svc.stop()
 
     try:
@@ -82,35 +83,61 @@ def _record_with_a_live_change(path, update):
     finally:
         recorder.close()
     assert changed and status["config_updates"] == 1
-    return sink.results
+    return sink.results, recorder.files
+
+
+def _recorded_profiles(path):
+    """[(stack, decoder.method)] of the stacks whose /stack message carries a profile."""
+    from edge.io.mcap import RecordingReader
+
+    return [(s.stack, s.info["profile"]["decoder"]["method"]) for s in RecordingReader(path).stacks()
+            if s.info and "profile" in s.info]
 
 
 def test_a_recording_with_a_live_change_replays_bit_for_bit(tmp_path):
-    """The first stack decoded after a live change carries the new profile into the recording
-    (DepthResult.profile -> the /stack message), and replay switches pipelines there: every
+    """Every result names the profile that decoded it; the recording marks the first stack the
+    changed profile decoded (its /stack message), and replay switches pipelines there: every
     stack matches, before and after the change (before, replay decoded everything with the
     starting profile and every stack after the change differed)."""
     from edge.io.replay import replay_recording
 
     path = tmp_path / "change.mcap"
-    results = _record_with_a_live_change(path, {"decoder": {"method": "median", "max_error": 0.02}})
-    marked = [r for r in results if r.profile is not None]
-    assert len(marked) == 1 and marked[0].profile["decoder"]["method"] == "median"
-    first = results.index(marked[0])
-    assert first >= 2 and len(results) - first >= 3
+    results, _ = _record_with_a_live_change(path, {"decoder": {"method": "median", "max_error": 0.02}})
+    methods = [r.profile.decoder.method for r in results]
+    first = methods.index("median")
+    assert first >= 2 and set(methods[:first]) == {"soft"} and set(methods[first:]) == {"median"}
+    assert _recorded_profiles(path) == [(results[first].stack, "median")]
     report = replay_recording(path)
     assert report.ok, report.lines()
-    assert report.profile_changes == 1 and report.stacks_matched == report.stacks_compared >= 5
+    assert report.profile_changes == 1 and report.stacks_matched == report.stacks_compared >= 7
+
+
+def test_rotated_files_after_a_live_change_replay_on_their_own(tmp_path):
+    """With rotation every file opens with the profile in use when it opened (it opened with the
+    starting one, so each file after a change failed replay on its own)."""
+    from edge.io.mcap import RecordingReader
+    from edge.io.replay import replay_recording
+
+    results, files = _record_with_a_live_change(tmp_path / "rot.mcap", {"decoder": {"method": "median"}},
+                                                max_bytes=1_500_000)
+    assert len(files) >= 3, files
+    stored = [RecordingReader(f).profile.decoder.method for f in files]
+    assert stored[0] == "soft" and stored[-1] == "median", stored
+    compared = 0
+    for f in files:
+        report = replay_recording(f)
+        assert not report.mismatches and not report.problem, report.lines()
+        compared += report.stacks_compared
+    assert compared >= 6
 
 
 def test_an_older_recording_with_a_live_change_says_why_it_differs(tmp_path, monkeypatch):
     """A recording whose stacks do not carry the changed profile (made before they did) replays
     with the starting profile; its mismatches come with the reason."""
-    import edge.io.recording as recording
+    from edge.io.recording import RecordingThread
     from edge.io.replay import replay_recording
 
-    plain = recording.stack_info
-    monkeypatch.setattr(recording, "stack_info", lambda r: {k: v for k, v in plain(r).items() if k != "profile"})
+    monkeypatch.setattr(RecordingThread, "_profile_change", lambda self, rec, r: None)
     path = tmp_path / "old.mcap"
     _record_with_a_live_change(path, {"decoder": {"method": "median", "max_error": 0.02}})
     report = replay_recording(path)

@@ -30,21 +30,22 @@ CONFIG_CHANGE_SCHEMA = {
 }
 
 
-def stack_info(result: DepthResult) -> dict[str, Any]:
+def stack_info(result: DepthResult, profile: dict[str, Any] | None = None) -> dict[str, Any]:
     """The ``/<device>/stack`` message of one decoded stack (JSON): what a replay needs to know about
     the stack besides its frames and its depth -- how many camera frames it had (``frames``; a
     replayed stack with fewer raw frames in the file lost some to the recorder) and how many masked
     EDC frames followed (``extra_frames``), its first frame's ``sequence``, when its last frame
     arrived (``received_ns``), the live decode time (``decode_ms``, EDC ``edc_round_ms`` /
-    ``edc_capture_ms``) and the pipeline's per-stack counters (``stats``); on the first stack decoded
-    after a live configuration change, ``profile``: the whole profile that decoded it
-    (`DepthResult.profile`; `edge.io.replay` switches to it at this stack)."""
+    ``edc_capture_ms``) and the pipeline's per-stack counters (``stats``); ``profile`` (a dict of
+    `edge.profiles.profile_to_dict`) where given: on the first stack of a file decoded with
+    another profile than the file's stored one or the stack before it (a live change;
+    `edge.io.replay` switches to it at this stack)."""
     return {"stack": int(result.stack), "sequence": int(result.sequence), "frames": int(result.stack_frames),
             "extra_frames": len(result.extra_frames), "edc_rounds": int(result.edc_rounds),
             "received_ns": int(result.received_ns), "decode_ms": round(result.decode_s * 1e3, 3),
             "edc_round_ms": list(result.edc_round_ms), "edc_capture_ms": list(result.edc_capture_ms),
             "stats": {k: int(v) for k, v in result.stats.items()},
-            **({} if result.profile is None else {"profile": result.profile})}
+            **({} if profile is None else {"profile": profile})}
 
 class EdgeRecorder(Recorder):
     """`Recorder` plus `write_events`: event slices on ``/<device>/events`` (schema ``edge.EventSlice``,
@@ -63,6 +64,8 @@ class EdgeRecorder(Recorder):
         self.write_message(self._events_channel, data, log_time_ns=s.timestamp_ns, sequence=s.sequence)
 
     _config_channel: int | None = None
+    #: The profile a replay of this file decodes with at the point written so far (`RecordingThread`).
+    decoding_profile: Any = None
 
     def write_config_change(self, change: dict[str, Any]) -> None:
         """One accepted config change on ``/<device>/config_change`` (schema ``edge.ConfigChange``)."""
@@ -168,11 +171,24 @@ class RecordingThread:
     def _open_next(self) -> EdgeRecorder:
         path = rotated_path(self.path, self.series, self._index) if self.rotate else self.path
         rec = EdgeRecorder(path, self.profile, sensor_metadata=self.sensor_metadata)
+        rec.decoding_profile = self.profile  # what a replay of this file starts with
         self._index += 1
         self.files.append(path)
         self._per_file[path] = [0, 0]
         self._opened = time.monotonic()
         return rec
+
+    def _profile_change(self, rec: EdgeRecorder, r: DepthResult) -> dict[str, Any] | None:
+        """The profile dict to record with ``r``'s stack where its decoding profile is not the one in
+        effect in ``rec`` (the file's stored profile, then the last one recorded in it); later
+        files open with it.  None where unchanged or unknown."""
+        from edge.profiles import profile_to_dict
+
+        if r.profile is None or r.profile == rec.decoding_profile:
+            return None
+        rec.decoding_profile = r.profile
+        self.profile = r.profile
+        return profile_to_dict(r.profile)
 
     def _finish(self, rec: EdgeRecorder) -> None:
         """Finish one file; after a write failure recount what the finalised file holds."""
@@ -284,7 +300,7 @@ class RecordingThread:
 
                 pts = result_points(r, rec.profile.geometry, settings.stride)
             # the stack's info first: `RecordingReader.stacks` hands a stack on once its depth is in
-            rec.write_stack(stack_info(r), timestamp_ns=r.timestamp_ns)
+            rec.write_stack(stack_info(r, self._profile_change(rec, r)), timestamp_ns=r.timestamp_ns)
             rec.write_depth(r.depth_mm, r.confidence, timestamp_ns=r.timestamp_ns, stack=r.stack,
                             sequence=r.sequence, edc_rounds=r.edc_rounds,
                             valid_fraction=round(r.valid_fraction, 6), points=pts,

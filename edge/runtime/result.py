@@ -36,10 +36,9 @@ class DepthResult:
     "confidence" validity rule, the dots / line pipelines).  noise: the decoder's noise model of
     this stack under the "error" rule, (a, beta, fitted): variance ``a + beta * I`` in normalised
     units, fitted False where too few pixels could be fitted and the profile's sigmas were used
-    (`edge.decode.posterior.fit_noise`); None otherwise.  profile: set on the first stack decoded
-    after a live configuration change took effect (`edge.profiles.profile_to_dict` of the profile
-    that decoded it, set by the service), so that a recording says at which stack the decoding
-    changed and a replay switches there too; None on every other stack.
+    (`edge.decode.posterior.fit_noise`); None otherwise.  profile: the `edge.profiles.Profile`
+    whose pipeline decoded this stack (set by the service; None outside it): a recording marks
+    the stack where it differs from the one before (a live change), and a replay switches there.
     """
 
     stack: int
@@ -59,7 +58,7 @@ class DepthResult:
     stack_frames: int = 0
     error: np.ndarray | None = None
     noise: tuple[float, float, bool] | None = None
-    profile: dict[str, Any] | None = None
+    profile: Any = None
 
     @property
     def frames_per_depth_map(self) -> int:

@@ -99,7 +99,6 @@ class Service:
         self._capture_done = threading.Event()
         self._threads: list[threading.Thread] = []
         self._pending_profile = None
-        self._profile_to_record: dict[str, Any] | None = None  # a change's profile, for its first decoded stack
         self._lock = threading.Lock()
         self._latency_s: deque[float] = deque(maxlen=256)
         self._decode_s: deque[float] = deque(maxlen=256)
@@ -306,11 +305,8 @@ class Service:
             with self._lock:
                 pending, self._pending_profile = self._pending_profile, None
             if pending is not None:
-                from edge.profiles import profile_to_dict
-
                 self._use_pipeline(pending[1])
                 self._change = {"keys": list(pending[2]), "decode_s": []}
-                self._profile_to_record = profile_to_dict(pending[0])
             try:
                 check_frame_size(stack.frames, self.profile.camera)
                 result = self.pipeline.process(stack, masked)
@@ -324,9 +320,8 @@ class Service:
                     self._stop.set()
                 continue
             failures = 0
-            if self._profile_to_record is not None:  # the first stack this profile decoded: say so in the recording
-                result = dataclasses.replace(result, profile=self._profile_to_record)
-                self._profile_to_record = None
+            # the profile that decoded it: the recording marks the stack where it changes
+            result = dataclasses.replace(result, profile=getattr(self.pipeline, "profile", self.profile))
             self.counters.stacks_decoded += 1
             self._check_budget(result.decode_s)
             self._deliver(result)
