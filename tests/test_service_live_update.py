@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from tests._service_helpers import load_test_profile
 
@@ -143,3 +144,17 @@ def test_an_older_recording_with_a_live_change_says_why_it_differs(tmp_path, mon
     report = replay_recording(path)
     assert not report.ok and report.profile_changes == 0
     assert "live config changes" in report.mismatches[-1], report.lines()
+
+
+def test_the_recorded_frame_tree_follows_a_live_baseline_change(tmp_path):
+    """/tf was written once, when the file opened: a live geometry.baseline_m change left the
+    projector frame at the old baseline while /calibration and the live sinks followed."""
+    from edge.io.mcap import RecordingReader
+
+    path = tmp_path / "tf.mcap"
+    results, _ = _record_with_a_live_change(path, {"geometry": {"baseline_m": 0.123}})
+    tfs = [m for m in RecordingReader(path).messages() if m.topic.endswith("/tf")]
+    xs = [max(abs(t.translation.x) for t in m.value.transforms) for m in tfs]
+    assert len(tfs) == 2 and xs[1] == pytest.approx(0.123) and xs[0] == pytest.approx(results[0].profile.geometry.baseline_m)
+    first_new = next(r for r in results if r.profile.geometry.baseline_m == 0.123)
+    assert tfs[1].log_time == first_new.timestamp_ns

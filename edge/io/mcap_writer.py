@@ -166,7 +166,8 @@ class Recorder:
             if sensor_metadata:
                 self._writer.add_metadata(SENSOR_METADATA, {str(k): str(v) for k, v in sensor_metadata.items()})
             self._add("calibration", self._calibration(now), now, 0)
-            tf = frame_transforms(profile.zenoh.device, profile.geometry.baseline_m, timestamp_ns=now)
+            self._tf_baseline = float(profile.geometry.baseline_m)  # of the last frame tree written
+            tf = frame_transforms(profile.zenoh.device, self._tf_baseline, timestamp_ns=now)
             self._add("tf", tf.SerializeToString(), now, 0)
             self._file.flush()
         except BaseException:
@@ -310,7 +311,9 @@ class Recorder:
         (metres, optical frame; `edge.runtime.depth.depth_to_points`) and its (H, W) float32
         error probability (``32FC1`` on ``/<device>/error``, NaN = no estimate;
         `edge.runtime.depth.error_image`).  ``geometry``: the geometry the depth was computed with
-        (default: the profile's), for the calibration message."""
+        (default: the profile's), for the calibration message, and for the frame tree: a ``tf``
+        message with the same timestamp where its baseline differs from the last one written (a
+        live geometry change)."""
         depth_mm, confidence = np.asarray(depth_mm), np.asarray(confidence)
         if depth_mm.dtype != np.uint16 or confidence.dtype != np.uint8 or depth_mm.shape != confidence.shape:
             raise ValueError("expected depth uint16 (H, W) and confidence uint8 of the same shape, got "
@@ -326,6 +329,10 @@ class Recorder:
         c = image_to_raw(confidence, timestamp_ns=timestamp_ns, encoding="mono8",
                          frame_id=self.frame_id).SerializeToString()
         calib = self._calibration(timestamp_ns, geometry)
+        baseline = getattr(geometry if geometry is not None else self.profile.geometry, "baseline_m", None)
+        tf = None
+        if baseline is not None and float(baseline) != self._tf_baseline:
+            tf = frame_transforms(self.profile.zenoh.device, float(baseline), timestamp_ns=timestamp_ns)
         cloud = None if points is None else point_cloud(points, timestamp_ns=timestamp_ns,
                                                         frame_id=self.frame_id).SerializeToString()
         info = json.dumps({"stack": int(stack), "sequence": int(sequence),
@@ -338,6 +345,9 @@ class Recorder:
                 self._add("error", e, timestamp_ns, sequence)
             self._add("confidence", c, timestamp_ns, sequence)
             self._add("calibration", calib, timestamp_ns)
+            if tf is not None:
+                self._add("tf", tf.SerializeToString(), timestamp_ns, 0)
+                self._tf_baseline = float(baseline)
             if cloud is not None:
                 self._add("points", cloud, timestamp_ns, sequence)
             self._file.flush()
