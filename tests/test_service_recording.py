@@ -234,3 +234,46 @@ def test_a_recording_cut_before_its_profile_is_named_truncated(tmp_path):
     cut.write_bytes(COMMITTED.read_bytes()[:1000])
     with pytest.raises(RecordingError, match=r"truncated or corrupt MCAP at byte \d+ of 1000.*ends before its profile"):
         replay_recording(cut)
+
+
+def test_replay_compares_every_depth_map_of_a_lagging_service(tmp_path):
+    """A decoder far behind its camera (queue 64, as `edge run --queue 64` allows): depth maps land
+    in the file dozens of stacks after their frames, and the stacks dropped stale never get one.
+    The recording marks dropped stacks, and replay compares every recorded depth map and counts
+    every complete stack without one (it gave up on a depth map 16 stacks late, skipped it and
+    still said bit for bit; the stale stacks were counted nowhere)."""
+    import time as _time
+
+    from edge.io.mcap import RecordingReader
+    from edge.io.recording import RecordingThread
+    from edge.io.replay import replay_recording
+    from edge.runtime.pipelines import make_pipeline
+    from edge.runtime.service import Service
+    from edge.sensors.sim import SimSensor
+
+    def slow(p):
+        pipe = make_pipeline(p)
+        process = pipe.process
+
+        def later(*a, **k):
+            _time.sleep(0.03)
+            return process(*a, **k)
+
+        pipe.process = later
+        return pipe
+
+    profile = load_test_profile()
+    path = tmp_path / "lag.mcap"
+    rec = RecordingThread(path, profile)
+    service = Service(profile, SimSensor(profile, max_speed=True), recorder=rec, queue_capacity=64,
+                      pipeline_factory=slow, warm_variants=False)
+    status = service.run(stacks=30)
+    rec.close()
+    stacks = list(RecordingReader(path).stacks())
+    assert status["stacks_dropped_stale"] > 0 and any(s.dropped == "stale" for s in stacks)
+    assert len(list(RecordingReader(path).stacks(max_pending=16))) > len(stacks)  # depth maps > 16 stacks late
+    report = replay_recording(path)
+    assert report.ok, report.lines()
+    assert report.stacks_compared == report.stacks_matched == status["recorder"]["outputs_written"] == 30
+    assert report.stacks_without_output >= status["stacks_dropped_stale"]
+    assert report.stacks_read == report.stacks_compared + report.stacks_without_output + report.stacks_incomplete

@@ -34,6 +34,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from ..sensors.base import EventSlice
+from .mcap_reader import MAX_PENDING
 
 SCHEMA_NAME = "edge.EventSlice"
 TOPIC_LEAF = "events"
@@ -109,7 +110,7 @@ def parse_event_slice(data: bytes) -> EventSlice:
                       int(msg.stack), int(msg.t_start_us), int(msg.t_end_us))
 
 
-def event_stacks(reader, *, max_pending: int = 16) -> Iterator[tuple[int, list[EventSlice], Any]]:
+def event_stacks(reader, *, max_pending: int = MAX_PENDING) -> Iterator[tuple[int, list[EventSlice], Any]]:
     """(stack id, its event slices in file order, its `RecordedOutput` or None) of an event recording,
     in stack order; a stack is complete once its output arrived and a later stack started, or once a
     stack ``max_pending`` ids later was seen, or at the end of the file (``reader.problem`` then says

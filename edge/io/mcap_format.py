@@ -29,7 +29,10 @@ topic                       schema (encoding)           content
                                                         edc_round_ms, edc_capture_ms, stats;
                                                         profile on the first stack a live
                                                         change decoded (replay switches there)
-                                                        (`edge.io.recording.stack_info`)
+                                                        (`edge.io.recording.stack_info`); for a
+                                                        complete stack the service did not
+                                                        decode: stack, dropped ("stale",
+                                                        "decode error")
 ``/<device>/calibration``   foxglove.CameraCalibration  camera intrinsics from the profile
                             (pb)                        geometry (plumb_bob, zero distortion):
                                                         one at the start and one per depth map
@@ -128,7 +131,7 @@ JSON_SCHEMAS: dict[str, dict[str, Any]] = {
             "received_ns": {"type": "integer"}, "decode_ms": {"type": "number"},
             "edc_round_ms": {"type": "array", "items": {"type": "number"}},
             "edc_capture_ms": {"type": "array", "items": {"type": "number"}}, "stats": {"type": "object"},
-            "profile": {"type": "object"},
+            "profile": {"type": "object"}, "dropped": {"type": "string"},
         },
     },
 }

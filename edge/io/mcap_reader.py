@@ -62,6 +62,13 @@ __all__ = [
 _NOT_DECODING = ("description", "sensor.", "zenoh.", "recording.", "sim.")
 
 
+#: How many stack ids a recorded depth map may trail its frames by before `RecordingReader.stacks`
+#: gives up waiting for it: the service's largest queue (``edge run --queue``, 64), the stack in
+#: decode and slack.  Every stack the service drops is marked in newer recordings, so this bound
+#: only matters for older ones and for a service that stopped mid-stack.
+MAX_PENDING = 72
+
+
 class RecordingError(ValueError):
     """Any problem with a recording (one line)."""
 
@@ -120,6 +127,7 @@ class RecordedStack:
     frames: list[RecordedFrame]
     info: dict[str, Any] | None = None       # the /stack message, if recorded
     output: RecordedOutput | None = None     # the recorded depth / confidence, if any
+    dropped: str | None = None               # why the service did not decode it ("stale", ...), if recorded
 
     @property
     def images(self) -> np.ndarray:
@@ -406,20 +414,21 @@ class RecordingReader:
                 if out is not None:
                     yield out
 
-    def stacks(self, *, max_pending: int = 16) -> Iterator[RecordedStack]:
+    def stacks(self, *, max_pending: int = MAX_PENDING) -> Iterator[RecordedStack]:
         """Frames grouped by stack id, with the stack's info and recorded output attached.
 
         A stack is yielded once its output has arrived and a later stack's frames have started, or
-        once frames of a stack ``max_pending`` ids later have been seen (outputs come from the
-        decode thread, so they may lag the raw frames), or at the end of the file. Writers should
+        once the service recorded that it dropped it (``dropped``), or once frames of a stack
+        ``max_pending`` ids later have been seen (outputs come from the decode thread, so they lag
+        the raw frames by up to the service's queue), or at the end of the file. Writers should
         call ``write_stack`` before ``write_depth`` for a stack so the info lands with it.
         """
         open_stacks: dict[int, RecordedStack] = {}
         newest = None
 
         def ready(s: RecordedStack) -> bool:
-            return newest is not None and ((s.output is not None and s.stack < newest)
-                                           or s.stack + max_pending <= newest)
+            return s.dropped is not None or newest is not None and ((s.output is not None and s.stack < newest)
+                                                                    or s.stack + max_pending <= newest)
 
         def flush(force: bool) -> Iterator[RecordedStack]:
             for sid in sorted(open_stacks):
@@ -440,6 +449,8 @@ class RecordingReader:
                 st.frames.append(item)
             elif isinstance(item, RecordedOutput):
                 st.output = item
+            elif "dropped" in item[1]:
+                st.dropped = str(item[1]["dropped"])
             else:
                 st.info = item[1]
             yield from flush(False)

@@ -266,9 +266,24 @@ class RecordingThread:
             self._items.append(("config", change, 0))
             self._cond.notify()
 
+    def on_stack_dropped(self, stack: int, reason: str) -> None:
+        """Queue the ``/<device>/stack`` message of a complete stack the service will not decode
+        (``{"stack", "dropped": reason}``: "stale", "decode error"), so that a replay does not wait
+        for its depth map; never dropped for lack of queue space (it is small)."""
+        if not self.outputs:
+            return
+        with self._cond:
+            if self._closing:
+                return
+            self._items.append(("dropped", {"stack": int(stack), "dropped": str(reason)}, 0))
+            self._cond.notify()
+
     def _write(self, kind: str, item: Any) -> None:
         if kind == "config":
             self.recorder.write_config_change(item)
+            return
+        if kind == "dropped":
+            self._target(item["stack"]).write_stack(item, timestamp_ns=time.time_ns())
             return
         stack = int(getattr(item, "stack", 0))
         if kind == "frame":

@@ -99,6 +99,13 @@ def replay_recording(path: str | os.PathLike[str], *, expected_profile: Any = No
             report.stacks_read += 1
             regular = [to_frame(f) for f in recorded.frames if parse_projector_frame(f.projector_frame).edc_round == 0]
             masked = [to_frame(f) for f in recorded.frames if parse_projector_frame(f.projector_frame).edc_round > 0]
+            if recorded.output is None:  # not decoded by the service (dropped stale, a decode error, the stop)
+                # counted without the assembler, which would take a late-yielded stack as out of order
+                if len(regular) >= len(pipeline.schedule):
+                    report.stacks_without_output += 1
+                else:
+                    report.stacks_incomplete += 1
+                continue
             changed = (recorded.info or {}).get("profile")
             if changed is not None:  # a live change took effect at this stack: decode as the service did
                 pipeline = make_pipeline(_changed_profile(path, recorded.stack, changed))
@@ -110,9 +117,6 @@ def replay_recording(path: str | os.PathLike[str], *, expected_profile: Any = No
                 assembler.flush()
                 continue
             out = recorded.output
-            if out is None:  # the service dropped this stack (stale) or stopped before decoding it
-                report.stacks_without_output += 1
-                continue
 
             def recorded_masked(stack_id: int, edc_round: int, rows: np.ndarray) -> list[Frame]:
                 got = [f for f in masked if parse_projector_frame(f.projector_frame).edc_round == edc_round]
@@ -126,7 +130,7 @@ def replay_recording(path: str | os.PathLike[str], *, expected_profile: Any = No
         assembler.flush()
     except RecordingError as exc:  # strict=False normally reports via reader.problem; be safe
         report.problem = str(exc)
-    report.stacks_incomplete = assembler.counters.stacks_incomplete
+    report.stacks_incomplete += assembler.counters.stacks_incomplete
     if reader.problem and not report.problem:
         report.problem = reader.problem
     if report.mismatches and not report.profile_changes and "config_change" in reader.leaves_seen:
@@ -211,7 +215,7 @@ def _replay_events(reader: Any, pipeline: Any, assembler: StackAssembler, report
         assembler.flush()
     except (RecordingError, ValueError) as exc:
         report.problem = str(exc)
-    report.stacks_incomplete = assembler.counters.stacks_incomplete
+    report.stacks_incomplete += assembler.counters.stacks_incomplete
     if reader.problem and not report.problem:
         report.problem = reader.problem
     if report.mismatches and not report.profile_changes and "config_change" in reader.leaves_seen:

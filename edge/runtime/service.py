@@ -259,9 +259,11 @@ class Service:
                 stack = self.assembler.push(frame)
                 if stack is not None:
                     try:
-                        self.queue.put(stack)
+                        stale = self.queue.put(stack)
                     except Closed:
                         break
+                    if stale is not None:  # the recording says no depth map will come for it
+                        self._note_dropped(stale, "stale")
         except Exception as exc:  # a broken sensor ends the run with the reason in status
             self.counters.last_error = f"sensor: {type(exc).__name__}: {exc}"
             self.fault = self.counters.last_error
@@ -313,6 +315,7 @@ class Service:
             except Exception as exc:
                 self.counters.decode_errors += 1
                 self.counters.last_error = f"decode: {type(exc).__name__}: {exc}"
+                self._note_dropped(stack, "decode error")
                 failures += 1
                 if failures >= MAX_CONSECUTIVE_DECODE_ERRORS:  # a persistent fault: stop, do not spin
                     self.counters.last_error += f" ({failures} stacks in a row failed; service stopped)"
@@ -328,6 +331,13 @@ class Service:
             if self._target_stacks is not None and self.counters.stacks_decoded >= self._target_stacks:
                 self._stop.set()
                 break
+
+    def _note_dropped(self, stack, reason: str) -> None:
+        """Tell the recorder that ``stack`` gets no depth map (``reason``: "stale", "decode error"), so
+        that a replay knows not to wait for one."""
+        note = getattr(self.recorder, "on_stack_dropped", None)
+        if note is not None:
+            note(int(stack.stack), reason)
 
     def stack_budget_s(self) -> float:
         """Seconds between two stacks at the camera rate (frames per stack / camera fps)."""
