@@ -300,11 +300,12 @@ def hard_regime(args, report_row) -> None:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--height", type=int, default=600)
-    p.add_argument("--width", type=int, default=700)
-    p.add_argument("--repeats", type=int, default=5)
-    p.add_argument("--band", type=int, default=128)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--height", type=int, default=600, help="capture height in pixels (default 600)")
+    p.add_argument("--width", type=int, default=700, help="capture width in pixels (default 700)")
+    p.add_argument("--repeats", type=int, default=5, help="timed calls per row; the median is reported (default 5)")
+    p.add_argument("--band", type=int, default=128,
+                   help="disparity band width in columns for the band rows (default 128)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the synthetic captures (default 0)")
     p.add_argument("--cold-compile", action="store_true",
                    help="also measure compile times in a subprocess with an empty numba cache")
     p.add_argument("--_child-compile", action="store_true", help=argparse.SUPPRESS)

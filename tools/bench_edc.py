@@ -28,7 +28,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rounds", type=int, default=3, help="edc.rounds (masked rounds after the stack's own check)")
     ap.add_argument("--scene", default=None, help="sim scene (default: the profile's)")
     ap.add_argument("--stacks", type=int, default=3, help="different stacks (poses)")
-    ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--repeats", type=int, default=7, help="timed runs; medians are reported (default 7)")
     args = ap.parse_args(argv)
 
     from edge.profiles import apply_update, load_profile

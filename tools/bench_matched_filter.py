@@ -60,8 +60,8 @@ def synthetic_events(n: int, w: int, h: int, code, slot_us: int, rng) -> np.ndar
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--repeats", type=int, default=7)
-    ap.add_argument("--events", type=int, default=4_000_000)
+    ap.add_argument("--repeats", type=int, default=7, help="timed runs; medians are reported (default 7)")
+    ap.add_argument("--events", type=int, default=4_000_000, help="events in the synthetic stream (default 4000000)")
     args = ap.parse_args()
     rng = np.random.default_rng(0)
     print(f"numba threads: {numba.get_num_threads()}  (cpu count {os.cpu_count()}; timings are noisy on shared machines)")

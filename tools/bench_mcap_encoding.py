@@ -86,9 +86,10 @@ def write(path: str, frames: list[np.ndarray], encoding: str, compression: Compr
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--frames", type=int, default=120)
-    ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--compression", choices=["zstd", "lz4", "none"], default="zstd")
+    ap.add_argument("--frames", type=int, default=120, help="640x480 frames written per run (default 120)")
+    ap.add_argument("--repeats", type=int, default=5, help="timed runs; medians are reported (default 5)")
+    ap.add_argument("--compression", choices=["zstd", "lz4", "none"], default="zstd",
+                    help="MCAP chunk compression (default zstd)")
     args = ap.parse_args()
     compression = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}[args.compression]
     print(f"{args.frames} frames of 640x480 per run, {args.repeats} runs, compression {args.compression}, "

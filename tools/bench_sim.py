@@ -32,9 +32,9 @@ def timeit(fn, repeats: int) -> tuple[float, float]:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--repeats", type=int, default=7)
-    ap.add_argument("--width", type=int, default=640)
-    ap.add_argument("--height", type=int, default=480)
+    ap.add_argument("--repeats", type=int, default=7, help="timed renders; the median is reported (default 7)")
+    ap.add_argument("--width", type=int, default=640, help="image width in pixels (default 640)")
+    ap.add_argument("--height", type=int, default=480, help="image height in pixels (default 480)")
     args = ap.parse_args()
     w, h = args.width, args.height
     cam = CameraModel(defocus_sigma=0.0)

@@ -14,11 +14,12 @@ from edge.eval.edc import run_report
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "docs" / "results" / "edc")
-    p.add_argument("--width", type=int, default=256)
-    p.add_argument("--height", type=int, default=192)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--rounds", type=int, default=3)
+    p.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "docs" / "results" / "edc",
+                   help="output folder (default docs/results/edc)")
+    p.add_argument("--width", type=int, default=256, help="scene width in pixels (default 256)")
+    p.add_argument("--height", type=int, default=192, help="scene height in pixels (default 192)")
+    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.add_argument("--rounds", type=int, default=3, help="adaptive EDC rounds allowed (default 3)")
     a = p.parse_args(argv)
     cmd = "python tools/eval_edc.py" + "".join(
         f" --{k} {v}" for k, v in (("width", a.width), ("height", a.height), ("seed", a.seed), ("rounds", a.rounds))

@@ -91,9 +91,11 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--size", default="160x120", help="scene size WxH (default 160x120)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1], help="scene / noise seeds (default 0 1)")
-    ap.add_argument("--gen", nargs="+", default=list(GENERATORS), choices=list(GENERATORS))
-    ap.add_argument("--codes", nargs="+", default=list(CODES))
-    ap.add_argument("--rules", nargs="+", default=list(RULES), choices=list(RULES))
+    ap.add_argument("--gen", nargs="+", default=list(GENERATORS), choices=list(GENERATORS),
+                    help="scene generators (default: all)")
+    ap.add_argument("--codes", nargs="+", default=list(CODES), help="code names (default: the table's codes)")
+    ap.add_argument("--rules", nargs="+", default=list(RULES), choices=list(RULES),
+                    help="validity rules / level sources compared (default: all)")
     args = ap.parse_args(argv)
     size = tuple(int(v) for v in args.size.split("x"))
     for g in args.gen:

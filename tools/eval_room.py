@@ -201,8 +201,9 @@ def devices_table(out: Path, max_n: int) -> str:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", default=str(ROOT / "docs" / "results" / "room"))
-    ap.add_argument("--max-devices", type=int, default=8)
+    ap.add_argument("--out", default=str(ROOT / "docs" / "results" / "room"),
+                    help="output folder (default docs/results/room)")
+    ap.add_argument("--max-devices", type=int, default=8, help="largest number of devices in the room (default 8)")
     ap.add_argument("--pixels", type=int, default=2000, help="pixels of the slot-level simulation")
     ap.add_argument("--quick", action="store_true", help="code tables up to L = 12 only")
     args = ap.parse_args()

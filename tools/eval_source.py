@@ -106,8 +106,9 @@ def curtain(out: Path, w: int, h: int) -> None:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "docs" / "results" / "source"))
-    ap.add_argument("--size", default="320x240")
+    ap.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "docs" / "results" / "source"),
+                    help="output folder (default docs/results/source)")
+    ap.add_argument("--size", default="320x240", help="scene size WxH (default 320x240)")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -77,8 +77,10 @@ reference_decoder.methods = ("soft", "hard")  # type: ignore[attr-defined]
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="small images, one seed, 5 ratios")
-    ap.add_argument("--out", type=Path, default=Path("docs/results/eval"))
-    ap.add_argument("--decoder", choices=("edge", "reference"), default="edge")
+    ap.add_argument("--out", type=Path, default=Path("docs/results/eval"),
+                    help="output folder (default docs/results/eval)")
+    ap.add_argument("--decoder", choices=("edge", "reference"), default="edge",
+                    help="edge: the library's decode(); reference: the small brute-force decoder (default edge)")
     ap.add_argument("--experiments", default=None, help="comma-separated subset of experiments")
     ap.add_argument("--report-only", action="store_true",
                     help="rewrite README.md and plots from --out/results.json (e.g. after editing findings.md)")
