@@ -59,10 +59,9 @@ class ReplaySensor:
             for _, slices, _ in event_stacks(self.reader):
                 yield from slices
             return
-        for recorded in self.reader.stacks():
-            for f in recorded.frames:
-                yield Frame(f.image, int(f.sequence), int(f.timestamp_ns), float(f.exposure_us),
-                            int(f.projector_frame), int(f.stack))
+        for f in self.reader.frames():  # capture order (stacks() hands stacks on as their outputs complete)
+            yield Frame(f.image, int(f.sequence), int(f.timestamp_ns), float(f.exposure_us),
+                        int(f.projector_frame), int(f.stack))
 
     def _put(self, frame) -> bool:
         while not self._stop.is_set():
