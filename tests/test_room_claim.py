@@ -40,8 +40,30 @@ def test_rules_tie_break_capacity_and_names():
     assert resolve("r", a, "cam", [Member("cam", 1, b)], 3, explicit=True, current=Member("cam", 0, a)).device == "cam"
     key = token_key("sl", "r", Member("cam-2", 3, "abc"))
     assert key == "sl/room/r/cam-2/3/abc" and parse_token(key, "sl", "r") == Member("cam-2", 3, "abc")
-    for bad in ("sl/room/r/cam/x/abc", "sl/room/r/cam/1", "sl/room/other/cam/1/abc", "sl/room/r/c m/1/z"):
+    for bad in ("sl/room/r/cam/x/abc", "sl/room/r/cam/1", "sl/room/other/cam/1/abc", "sl/room/r/c m/1/z",
+                "sl/room/r/cam/1/abc/f x", "sl/room/r/cam/1/abc/f/g"):
         assert parse_token(bad, "sl", "r") is None
+
+
+def test_members_of_another_code_family_are_refused():
+    """A claim's token names the family its index is into; a member that indexes another family (another
+    sensor kind, projector stream, family_size or code_length) is refused: the same index is another
+    code to it, so two members could project one code and each would filter the others with the wrong
+    codes.  A token without a family (an older member) is taken as this member's family."""
+    from edge.profiles import apply_update, load_profile
+    from edge.runtime.room import RoomFamilyMismatch, family_tag
+
+    me = Member("cam", 2, "0b", "frame-aperiodic-4x8")
+    key = token_key("sl", "r", me)
+    assert key == "sl/room/r/cam/2/0b/frame-aperiodic-4x8" and parse_token(key, "sl", "r") == me
+    assert resolve("r", "0c", "dev", [me], 4, family="frame-aperiodic-4x8") == Member("dev", 0, "0c", "frame-aperiodic-4x8")
+    assert resolve("r", "0c", "dev", [Member("old", 0, "0a")], 4, family="frame-aperiodic-4x8").code == 1
+    with pytest.raises(RoomFamilyMismatch, match=r"room 'r' holds members of another code family: cam \(frame-aperiodic-4x8\); "
+                                                 r"this one is event-periodic-4x6"):
+        resolve("r", "0c", "dev", [me], 4, family="event-periodic-4x6")
+    oak, events = load_profile("oak-d-pro"), load_profile("event-dots")
+    assert family_tag(oak) != family_tag(events)  # the two kinds index different families
+    assert family_tag(apply_update(oak, {"room": {"code_length": 6}})) == "frame-periodic-4x6"
 
 
 def _session(listen, connect=()):

@@ -144,3 +144,70 @@ def test_three_services_claim_distinct_codes_keep_depth_refuse_fourth_and_free_k
         for s in subs:
             s.undeclare()
         session.close()
+
+
+class _Claim:
+    """A room claim as `RoomLink` sees it, without zenoh (the view is set by the test)."""
+
+    room = "lab"
+    on_change = None
+    on_lost = None
+
+    def __init__(self, me, members):
+        self.me, self._members = me, list(members)
+
+    def members(self):
+        return list(self._members)
+
+    def status(self):
+        return {"room": self.room, "code": self.me.code}
+
+
+def _linked_service(base, me, members):
+    from edge.io.room import RoomLink
+    from edge.runtime.room import room_profile
+    from edge.runtime.service import Service
+    from edge.sensors.sim import SimSensor
+
+    link = RoomLink.__new__(RoomLink)  # a joined link (join_room is zenoh's part, tested above)
+    link.base, link.session, link.service = base, None, None
+    link.claim, link.profile = _Claim(me, members), room_profile(base, me)
+    link._seen = (me, tuple(members))
+    service = Service(link.profile, SimSensor(link.profile, max_speed=True), warm_variants=False)
+    link.attach(service)
+    return link, service
+
+
+def test_live_updates_keep_the_room_and_claim_changes_keep_live_updates():
+    """A live config update (the `sl/<device>/config` queryable's call) built its pipeline without the
+    other members' codes, so the joint filter was off after any update (DLP depth 93 % -> 1 %); and a
+    later claim change rebuilt the profile from the start-up one, undoing the accepted updates."""
+    from _service_helpers import load_test_profile
+    from edge.runtime.room import Member, room_family_for
+
+    base = load_test_profile(room={"name": "lab", "family_size": 3})
+    fam = room_family_for(base)
+    me, other = Member("d0", 0, "0a"), Member("d1", 1, "0b")
+    link, service = _linked_service(base, me, [me, other])
+    assert service.pipeline.foreign_sources == (fam[1].string,)
+    service.update_config({"geometry": {"baseline_m": 0.0801}})
+    new, pipeline, _ = service._pending_profile
+    assert pipeline.foreign_sources == (fam[1].string,) and new.geometry.baseline_m == 0.0801
+    # a third member joins: the claim's view changes, the live update stays
+    third = Member("d2", 2, "0c")
+    link._on_change(me, [me, other, third])
+    new, pipeline, keys = service._pending_profile
+    assert keys == ["room"] and new.geometry.baseline_m == 0.0801 and new.code.source == fam[0].string
+    assert sorted(pipeline.foreign_sources) == sorted((fam[1].string, fam[2].string))
+
+
+def test_a_member_that_loses_its_code_stops_with_a_fault():
+    """It stopped with the reason in status but no fault, so `edge run` exited 0 with nothing on stderr
+    (systemd's Restart=on-failure left the sensor down)."""
+    from _service_helpers import load_test_profile
+    from edge.runtime.room import Member, RoomFull
+
+    me = Member("d0", 0, "0c")
+    link, service = _linked_service(load_test_profile(room={"name": "lab", "family_size": 2}), me, [me])
+    link._on_lost(RoomFull("lab", 2, [Member("w", 0, "0a"), Member("e", 1, "0b")]))
+    assert service.stopping and service.status()["fault"].startswith("room: room 'lab' is full")

@@ -141,6 +141,37 @@ def test_dots_pipeline_stereo_frames_match_reference_mode():
                                     for i, (im, pid) in enumerate(zip(images, pipe.schedule))), 0))
 
 
+def test_dots_pipelines_publish_no_depth_without_the_own_dots():
+    """Block matching returns disparities where the camera sees no dots (a dark scene, the projector
+    off): about 10 % of the pixels got depth there; a pixel has depth only where its block holds one
+    of the own dots, and a normal stack keeps its depth."""
+    from edge.source.events import EVENT_DTYPE
+
+    p = load_profile("oak-d-pro")
+    p = apply_update(p, {"camera": {"width": 160, "height": 100}, "projector": {"width": 160, "height": 100},
+                         "geometry": {"focal_px": 95.0, "cx_camera": 80.0, "cx_projector": 80.0, "cy": 50.0},
+                         "decoder": {"min_disparity": 1, "max_disparity": 24}})
+    sensor = open_sensor(p, "sim", max_speed=True)
+    pipe = make_pipeline(p)
+    images = sensor.render_stack(0)
+
+    def run(frames):
+        return pipe.process(Stack(0, tuple(dataclasses.replace(_frame(im, i, 0), projector_frame=int(pid))
+                                           for i, (im, pid) in enumerate(zip(frames, pipe.schedule))), 0))
+
+    assert run(images).valid_fraction > 0.5
+    for value in (0, 100, 255):  # black, constant, saturated frames
+        r = run([np.full_like(im, value) for im in images])
+        assert r.valid_fraction == 0.0 and not r.confidence.any() and (r.column == -1).all()
+    e = small_event_profile()
+    esensor = open_sensor(e, max_speed=True)
+    epipe = make_pipeline(e)
+    slices = [esensor._record(ev, j, 0, j) for j, ev in enumerate(esensor.render_stack(0))]
+    assert epipe.process(Stack(0, tuple(slices), 0)).valid_fraction > 0.3
+    empty = [dataclasses.replace(s, events=np.zeros(0, EVENT_DTYPE)) for s in slices]
+    assert epipe.process(Stack(0, tuple(empty), 0)).valid_fraction == 0.0
+
+
 def test_event_slice_message_round_trip():
     from edge.io.event_record import event_slice_message, parse_event_slice
     from edge.source.events import make_events

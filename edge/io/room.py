@@ -31,9 +31,10 @@ from typing import Callable, Iterable
 
 import zenoh
 
-from edge.runtime.room import Member, RoomFull, RoomNameTaken, parse_token, resolve, room_selector, token_key
+from edge.runtime.room import (Member, RoomFamilyMismatch, RoomFull, RoomNameTaken, parse_token, resolve,
+                               room_selector, token_key)
 
-__all__ = ["RoomClaim", "RoomFull", "RoomNameTaken", "room_members"]
+__all__ = ["RoomClaim", "RoomFamilyMismatch", "RoomFull", "RoomNameTaken", "room_members"]
 
 #: Seconds `join_room` waits for a first peer / router link when connect endpoints are configured.
 CONNECT_WAIT_S = 5.0
@@ -57,18 +58,19 @@ class RoomClaim:
 
     session: an open zenoh session (not closed here); prefix / room: the key space; device: the
     requested device name (``explicit``: from ``--device``, never renamed); capacity: codes in the
-    family; settle_s: how long to wait for tokens to propagate; on_change(me, members): called when
+    family; family: its tag (`edge.runtime.room.family_tag`, carried in the token); settle_s: how long to wait for tokens to propagate; on_change(me, members): called when
     the claim or the membership changes after `join`; on_lost(error): called when a running member
     loses its code and no code is free.
     """
 
     def __init__(self, session: zenoh.Session, *, prefix: str, room: str, device: str, capacity: int,
-                 explicit: bool = False, settle_s: float = 0.5,
+                 explicit: bool = False, settle_s: float = 0.5, family: str = "",
                  on_change: Callable[[Member, list[Member]], None] | None = None,
                  on_lost: Callable[[Exception], None] | None = None) -> None:
         self.session = session
         self.prefix, self.room, self.base_device, self.explicit = prefix, room, device, bool(explicit)
         self.capacity = int(capacity)
+        self.family = str(family)
         self.settle_s = float(settle_s)
         self.on_change = on_change
         self.on_lost = on_lost
@@ -136,14 +138,14 @@ class RoomClaim:
             with self._lock:
                 others = self._others()
             me = resolve(self.room, self.zid, self.base_device, others, self.capacity, current=self._me,
-                         explicit=self.explicit)
+                         explicit=self.explicit, family=self.family)
             if me != self._me:
                 self._declare(me)
                 time.sleep(self.settle_s)
                 continue
             with self._lock:
                 stable = resolve(self.room, self.zid, self.base_device, self._others(), self.capacity,
-                                 current=self._me, explicit=self.explicit) == self._me
+                                 current=self._me, explicit=self.explicit, family=self.family) == self._me
                 if stable:
                     self._joined = True
                     self._notified = (self._me, tuple(self.members()))
@@ -158,8 +160,8 @@ class RoomClaim:
             before = self._me
             try:
                 me = resolve(self.room, self.zid, self.base_device, self._others(), self.capacity,
-                             current=before, explicit=self.explicit)
-            except (RoomFull, RoomNameTaken) as exc:
+                             current=before, explicit=self.explicit, family=self.family)
+            except (RoomFull, RoomNameTaken, RoomFamilyMismatch) as exc:
                 lost = exc
             else:
                 lost = None
@@ -209,7 +211,7 @@ def join_room(profile, *, explicit_device: bool = False):
     error the session is closed and the error (RoomFull / RoomNameTaken / ValueError) raised.
     """
     from edge.io.zenoh import open_session
-    from edge.runtime.room import room_family_for, room_profile
+    from edge.runtime.room import family_tag, room_family_for, room_profile
 
     family = room_family_for(profile)  # fails early on an impossible family
     session = open_session(profile.zenoh)
@@ -222,7 +224,7 @@ def join_room(profile, *, explicit_device: bool = False):
                 time.sleep(0.05)
         claim = RoomClaim(session, prefix=profile.zenoh.prefix, room=profile.room.name,
                           device=profile.zenoh.device, capacity=len(family), explicit=explicit_device,
-                          settle_s=profile.room.settle_s)
+                          settle_s=profile.room.settle_s, family=family_tag(profile))
         me = claim.join()
         return session, claim, room_profile(profile, me)
     except BaseException:
@@ -265,6 +267,18 @@ class RoomLink:
         service.extra_status.append(self.claim.status)
         if hasattr(service.pipeline, "foreign_sources"):
             service.pipeline.foreign_sources = self.foreign_sources(self.claim.me, self.claim.members())
+        # every pipeline the service builds from now on (a live config update, a warm variant) gets
+        # the other members' codes too: a live update turned the joint filter off
+        factory = service.pipeline_factory
+
+        def with_room(profile):
+            pipeline = factory(profile)
+            if hasattr(pipeline, "foreign_sources"):
+                me, members = self._seen
+                pipeline.foreign_sources = self.foreign_sources(me, members)
+            return pipeline
+
+        service.pipeline_factory = with_room
         self.claim.on_change = self._on_change
         self.claim.on_lost = self._on_lost
 
@@ -274,15 +288,14 @@ class RoomLink:
         if (me, tuple(members)) == self._seen or self.service is None:
             return
         self._seen = (me, tuple(members))
-        new = room_profile(self.base, me)
-        pipeline = self.service.pipeline_factory(new)
-        if hasattr(pipeline, "foreign_sources"):
-            pipeline.foreign_sources = self.foreign_sources(me, members)
-        self.service.switch_profile(new, pipeline)
+        # from the running profile: the live updates accepted so far stay (the start-up profile undid them)
+        new = room_profile(self.service.profile, me)
+        self.service.switch_profile(new, self.service.pipeline_factory(new))
 
     def _on_lost(self, exc: Exception) -> None:
         if self.service is not None:
             self.service.counters.last_error = f"room: {exc}"
+            self.service.fault = self.service.counters.last_error  # exit 1 with the reason on stderr
             self.service.stop()
 
     # sink protocol: nothing per result / status; close leaves the room

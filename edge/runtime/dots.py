@@ -109,7 +109,14 @@ class _SlotPipeline:
                            block_size=BLOCK_SIZE)
 
     def result(self, stack: Stack, disparity: np.ndarray, confidence: np.ndarray, t0: float,
-               stats: dict[str, int] | None = None) -> DepthResult:
+               stats: dict[str, int] | None = None, dots: np.ndarray | None = None) -> DepthResult:
+        """The `DepthResult` of a matched disparity (NaN invalid), with depth only where the block
+        around the pixel holds at least one of the own dots (``dots``: the dot image matched, > 0 at a
+        dot): block matching returns disparities in blocks without texture too (no light from
+        the own projector: a dark scene, the projector off), and those are not measurements."""
+        if dots is not None:
+            supported = box_mean(np.asarray(dots) > 0) > np.float32(0.5 / BLOCK_SIZE**2)
+            disparity = np.where(supported, disparity, np.nan)
         depth = disparity_to_depth_mm(disparity, self.geometry)
         return DepthResult(
             stack=stack.stack, sequence=stack.first_sequence, timestamp_ns=stack.timestamp_ns,
@@ -155,7 +162,7 @@ class DotsPipeline(_SlotPipeline):
             left, reference = amp, self.reference
         disparity = self.match(left, reference)
         confidence = np.clip(box_mean(left > 0) / np.float32(DOT_DENSITY), 0.0, 1.0)
-        return self.result(stack, disparity, confidence, t0, {"dot_pixels": int(np.count_nonzero(left))})
+        return self.result(stack, disparity, confidence, t0, {"dot_pixels": int(np.count_nonzero(left))}, left)
 
 
 class EventDotsPipeline(_SlotPipeline):
@@ -215,4 +222,4 @@ class EventDotsPipeline(_SlotPipeline):
         kept = box_mean(count_image(ev, w, h, res.keep))
         total = box_mean(count_image(ev, w, h))
         confidence = np.divide(kept, total, out=np.zeros_like(total), where=total > 0)
-        return self.result(stack, disparity, confidence, t0, stats)
+        return self.result(stack, disparity, confidence, t0, stats, dots)

@@ -38,14 +38,17 @@ _CHUNK = re.compile(r"[A-Za-z0-9_-]+")
 
 @dataclass(frozen=True, order=True)
 class Member:
-    """One member's claim: ``device`` key-space name, ``code`` family index, ``zid`` zenoh session id."""
+    """One member's claim: ``device`` key-space name, ``code`` family index, ``zid`` zenoh session id,
+    ``family`` the tag of the family its index is into (`family_tag`; "" from a member that does
+    not say, which is taken as this member's family)."""
 
     device: str
     code: int
     zid: str
+    family: str = ""
 
     def as_dict(self) -> dict:
-        return {"device": self.device, "code": self.code, "zid": self.zid}
+        return {"device": self.device, "code": self.code, "zid": self.zid, "family": self.family}
 
 
 class RoomFull(ValueError):
@@ -68,6 +71,26 @@ class RoomNameTaken(ValueError):
                          f"choose another --device NAME")
 
 
+class RoomFamilyMismatch(ValueError):
+    """Another member of the room indexes another code family: the same index would be another code
+    to it (two members could project one code, and each would filter the others' light with the
+    wrong codes)."""
+
+    def __init__(self, room: str, family: str, members: Sequence[Member]):
+        self.room, self.family, self.members = room, family, list(members)
+        names = ", ".join(f"{m.device} ({m.family})" for m in self.members)
+        super().__init__(f"room {room!r} holds members of another code family: {names}; this one is {family} "
+                         f"(sensor kind - projector stream - [room] family_size x code_length): every member of "
+                         f"a room needs the same")
+
+
+def family_tag(profile) -> str:
+    """The room family a profile indexes into, as a key chunk: ``<kind>-<stream>-<size>x<length>``
+    (`room_code_kind`, ``[room] family_size`` and ``code_length``), e.g. ``frame-aperiodic-4x8``."""
+    kind, stream = room_code_kind(profile)
+    return f"{kind}-{stream}-{int(profile.room.family_size)}x{int(profile.room.code_length)}"
+
+
 def zid_order(zid: str) -> tuple[int, str]:
     """Sort key of a zenoh session id (hex string): numeric, then textual."""
     try:
@@ -77,8 +100,10 @@ def zid_order(zid: str) -> tuple[int, str]:
 
 
 def token_key(prefix: str, room: str, member: Member) -> str:
-    """``<prefix>/room/<room>/<device>/<code>/<zid>``: the liveliness key of a claim."""
-    return f"{prefix}/room/{room}/{member.device}/{member.code}/{member.zid}"
+    """``<prefix>/room/<room>/<device>/<code>/<zid>/<family>``: the liveliness key of a claim (no
+    ``/<family>`` for a member without a family tag)."""
+    tail = f"/{member.family}" if member.family else ""
+    return f"{prefix}/room/{room}/{member.device}/{member.code}/{member.zid}{tail}"
 
 
 def room_selector(prefix: str, room: str) -> str:
@@ -92,9 +117,10 @@ def parse_token(key: str, prefix: str, room: str) -> Member | None:
     if not key.startswith(head):
         return None
     parts = key[len(head):].split("/")
-    if len(parts) != 3 or not _CHUNK.fullmatch(parts[0]) or not parts[1].isdigit() or not _CHUNK.fullmatch(parts[2]):
+    if len(parts) not in (3, 4) or not _CHUNK.fullmatch(parts[0]) or not parts[1].isdigit() \
+            or not all(_CHUNK.fullmatch(p) for p in parts[2:]):
         return None
-    return Member(parts[0], int(parts[1]), parts[2])
+    return Member(parts[0], int(parts[1]), parts[2], parts[3] if len(parts) == 4 else "")
 
 
 def _outranks(other: Member, zid: str) -> bool:
@@ -102,16 +128,20 @@ def _outranks(other: Member, zid: str) -> bool:
 
 
 def resolve(room: str, zid: str, base_device: str, others: Iterable[Member], capacity: int, *,
-            current: Member | None = None, explicit: bool = False) -> Member:
+            current: Member | None = None, explicit: bool = False, family: str = "") -> Member:
     """The claim a member with session ``zid`` holds given the ``others`` it sees (module invariants).
 
     base_device: the requested device name; explicit: it came from ``--device`` (never renamed);
-    current: the member's present claim (None before its first claim).  Raises `RoomFull` /
-    `RoomNameTaken`.
+    current: the member's present claim (None before its first claim); family: the tag of its
+    code family (`family_tag`).  Raises `RoomFull` / `RoomNameTaken`, and `RoomFamilyMismatch`
+    where another member says it indexes another family.
     """
     if capacity < 1:
         raise ValueError(f"room capacity must be >= 1, got {capacity}")
     others = [m for m in others if m.zid != zid]
+    strangers = [m for m in others if family and m.family and m.family != family]
+    if strangers:
+        raise RoomFamilyMismatch(room, family, strangers)
     # device name
     taken_names = {m.device for m in others}
     if current is not None and not any(m.device == current.device and _outranks(m, zid) for m in others):
@@ -130,11 +160,11 @@ def resolve(room: str, zid: str, base_device: str, others: Iterable[Member], cap
     # code
     if current is not None and 0 <= current.code < capacity and \
             not any(m.code == current.code and _outranks(m, zid) for m in others):
-        return Member(device, current.code, zid)
+        return Member(device, current.code, zid, family)
     held = {m.code for m in others}
     for code in range(capacity):
         if code not in held:
-            return Member(device, code, zid)
+            return Member(device, code, zid, family)
     raise RoomFull(room, capacity, others)
 
 
