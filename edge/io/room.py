@@ -2,17 +2,19 @@
 
 Key (one liveliness token per member, no payload; everything is in the key)::
 
-    <prefix>/room/<room>/<device>/<code>/<zid>
+    <prefix>/room/<room>/<device>/<code>/<zid>/<family>
 
 ``device`` is the member's key-space name (its depth is on ``<prefix>/<device>/depth``), ``code`` the
-index of its source code in the room's family, ``zid`` its zenoh session id.  The claim rules are in
+index of its source code in the room's family, ``zid`` its zenoh session id, ``family`` the tag of
+that family (`edge.runtime.room.family_tag`; a member of another family is refused,
+`RoomFamilyMismatch`).  The claim rules are in
 `edge.runtime.room` (pure); this module applies them to the live view:
 
 * `RoomClaim.join`: subscribe to ``<prefix>/room/<room>/**`` (liveliness, with history), wait
   ``settle_s`` for the view, claim (`resolve`), declare the token, wait ``settle_s`` again and
   re-claim while the view shows a conflict this member loses (two members that start at the same
-  instant: the larger zid moves).  Raises `RoomFull` / `RoomNameTaken` (ValueError: exit 2 on the
-  CLI) naming the room and its members.
+  instant: the larger zid moves).  Raises `RoomFull` / `RoomNameTaken` / `RoomFamilyMismatch`
+  (ValueError: exit 2 on the CLI) naming the room and its members.
 * While running, every change of the view (a member joins, leaves, or a conflict appears) re-runs
   the rules; a changed claim re-declares the token and calls ``on_change(me, members)`` (the service
   applies it between stacks).  A member whose process dies loses its token when its session's

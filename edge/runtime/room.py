@@ -19,6 +19,9 @@ Invariants (every member applies the same rules to the same view, so they conver
 4. **Capacity.**  When every code is held by others, `resolve` raises `RoomFull` naming the room and
    its members: a device beyond the family's capacity refuses to run.  An explicit device name
    (``--device``) held by a member with a smaller zid raises `RoomNameTaken` instead of renaming.
+5. **One family.**  A code index means a code of one family (`family_tag`: sensor kind, projector
+   stream, family size and code length); a member that sees another that indexes another family
+   raises `RoomFamilyMismatch` (a member that names no family is taken as of this one).
 
 With a stable view, members that rejoin at most N - 1 times settle in one round each: every move
 goes to a code no other member held in the mover's view.
