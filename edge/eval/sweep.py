@@ -325,7 +325,7 @@ def run_sweep(cfg: SweepConfig, decoder: Decoder, *, progress: bool = True) -> l
             npx += m.pixels
             bar.update(1)
         rows.append(Row(exp, series, float(x), float(sum(errs) / npx), float(sum(wrong) / npx), float(sum(dec) / npx),
-                        float(np.nanmean(rmse)), float(sum(wv) / npx), npx, time.perf_counter() - t0,
+                        _mean_or_nan(rmse), float(sum(wv) / npx), npx, time.perf_counter() - t0,
                         dict(code=code.name, method=job["method"], stripe=job.get("stripe", 1), levels=job["levels"],
                              bits=job["camera"].bits, validity=job["settings"].rule(False)),
                         [float(e / p) if p else float("nan") for e, p in zip(b_err, b_px)], [int(p) for p in b_px],
@@ -638,3 +638,10 @@ def write_report(rows: list[Row], out_dir: Path, cfg: SweepConfig, *, command: s
     path = out_dir / "README.md"
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def _mean_or_nan(values: list[float]) -> float:
+    """Mean of the finite values (NaN where a point published no pixel: no RMSE), without numpy's
+    empty-slice warning."""
+    finite = [v for v in values if np.isfinite(v)]
+    return float(np.mean(finite)) if finite else float("nan")
