@@ -119,11 +119,16 @@ def _frame(image, seq, stack):
     return Frame(image, seq, seq, 1.0, 0, stack)
 
 
+def small_oak_profile():
+    """oak-d-pro at 160 x 100 (its simulator and dot pipeline on a small image)."""
+    return apply_update(load_profile("oak-d-pro"), {
+        "camera": {"width": 160, "height": 100}, "projector": {"width": 160, "height": 100},
+        "geometry": {"focal_px": 95.0, "cx_camera": 80.0, "cx_projector": 80.0, "cy": 50.0},
+        "decoder": {"min_disparity": 1, "max_disparity": 24}})
+
+
 def test_dots_pipeline_stereo_frames_match_reference_mode():
-    p = load_profile("oak-d-pro")
-    p = apply_update(p, {"camera": {"width": 160, "height": 100}, "projector": {"width": 160, "height": 100},
-                         "geometry": {"focal_px": 95.0, "cx_camera": 80.0, "cx_projector": 80.0, "cy": 50.0},
-                         "decoder": {"min_disparity": 1, "max_disparity": 24}})
+    p = small_oak_profile()
     sensor = open_sensor(p, "sim", max_speed=True)
     pipe = make_pipeline(p)
     images = sensor.render_stack(0)
@@ -147,10 +152,7 @@ def test_dots_pipelines_publish_no_depth_without_the_own_dots():
     of the own dots, and a normal stack keeps its depth."""
     from edge.source.events import EVENT_DTYPE
 
-    p = load_profile("oak-d-pro")
-    p = apply_update(p, {"camera": {"width": 160, "height": 100}, "projector": {"width": 160, "height": 100},
-                         "geometry": {"focal_px": 95.0, "cx_camera": 80.0, "cx_projector": 80.0, "cy": 50.0},
-                         "decoder": {"min_disparity": 1, "max_disparity": 24}})
+    p = small_oak_profile()
     sensor = open_sensor(p, "sim", max_speed=True)
     pipe = make_pipeline(p)
     images = sensor.render_stack(0)

@@ -218,21 +218,5 @@ def _replay_events(reader: Any, pipeline: Any, assembler: StackAssembler, report
     report.stacks_incomplete += assembler.counters.stacks_incomplete
     if reader.problem and not report.problem:
         report.problem = reader.problem
-    if report.mismatches and not report.profile_changes and "config_change" in reader.leaves_seen:
-        report.mismatches.append("the recording holds live config changes (/config_change) but no stack says "
-                                 "where they took effect (recorded before stacks carried their profile): the "
-                                 "stacks after a change were decoded with the starting profile")
     return report
 
-
-def _changed_profile(path: str | os.PathLike[str], stack_id: int, data: Any):
-    """The `Profile` a recorded stack's info names (a live change); `RecordingError` if invalid."""
-    from edge.io.mcap import RecordingError
-    from edge.io.mcap_reader import recorded_profile_dict
-    from edge.profiles import ProfileError, profile_from_dict
-
-    try:
-        return profile_from_dict(recorded_profile_dict(data), source=f"{os.fspath(path)} (stack {stack_id})")
-    except (ValueError, ProfileError) as exc:
-        raise RecordingError(f"{os.fspath(path)}: the profile recorded at stack {stack_id} (a live change) is "
-                             f"invalid: {exc}") from None
