@@ -587,3 +587,10 @@ def test_small_row_render_matches_the_kernels_with_noise():
         render.SMALL_RENDER = old
     assert np.abs(small.astype(int) - big.astype(int)).max() <= 1  # float rounding at .5 at most
     assert (small == big).mean() > 0.999
+
+
+def test_a_code_that_detects_nothing_is_refused():
+    """gray-10 has d_min 1: every word is a codeword, so the loop verified every pixel unchecked."""
+    with pytest.raises(ValueError, match=r"EDC needs a code that detects errors \(d_min >= 2\), got 'gray-10'"):
+        EdcScheme("gray-10")
+    assert EdcScheme("gray-10+crc5").code.d_min >= 2

@@ -102,3 +102,16 @@ def test_layout_file_names_the_recording_topics():
     for leaf in ("depth", "confidence", "points", "calibration"):
         assert f"/sim-dlp/{leaf}" in text
     assert "sim_dlp_optical_frame" in text or "sim_dlp_link" in text
+
+
+def test_edge_run_names_the_port_it_bound(capsys):
+    """``--foxglove 0`` binds any free port; the banner printed ws://127.0.0.1:0."""
+    from _service_helpers import TEST_PROFILE
+    from edge.cli import main
+
+    assert main(["run", "--profile", str(TEST_PROFILE), "--foxglove", "0", "--no-zenoh", "--stacks", "1",
+                 "--max-speed", "--quiet"]) == 0
+    banner = [line for line in capsys.readouterr().out.splitlines() if "Foxglove ws://" in line]
+    port = int(banner[0].split("Foxglove ws://127.0.0.1:")[1].split(",")[0].split()[0])
+    assert port > 0
+

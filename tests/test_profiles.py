@@ -161,3 +161,22 @@ def test_cli_profiles(tmp_path, capsys):
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("ok: ") and out[1].startswith("error: ") and "camera.bits" in out[1]
     assert cli_main(["profiles", "show", "nope"]) == 2
+
+
+def test_edc_rounds_need_a_code_that_detects_errors_and_a_column_projector():
+    """edc.rounds > 0 with gray-10 (d_min 1: every word is a codeword) published every pixel as
+    verified at confidence 255; with ecc-31-10 / nary3-6 the check passed and `edge run` refused;
+    on dot and line projectors it was silently ignored."""
+    from edge.runtime.warmup import switchable_variants
+
+    p = load_profile()
+    assert apply_update(p, {"edc": {"rounds": 2}}).edc.rounds == 2  # ecc-22-10: d_min 8, 22 frames
+    for code, why in (("gray-10", "its d_min is 1"), ("ecc-31-10", "it has 31 frames"), ("nary3-6", "it is not binary")):
+        width = 729 if code == "nary3-6" else p.projector.width
+        q = apply_update(p, {"code": {"name": code}, "projector": {"width": width}})
+        with pytest.raises(ProfileError, match=rf"edc\.rounds: expected 0 with code '{code}'.*{why}"):
+            apply_update(q, {"edc": {"rounds": 1}})
+        assert "edc" not in [label for label, _ in switchable_variants(q)]  # no EDC variant to warm
+    for name, kind in (("light-curtain", "line"), ("oak-d-pro", "dots"), ("event-dots", "dots")):
+        with pytest.raises(ProfileError, match=rf"edc\.rounds: expected 0 for a '{kind}' projector"):
+            apply_update(load_profile(name), {"edc": {"rounds": 2}})

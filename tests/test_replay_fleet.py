@@ -94,6 +94,25 @@ def test_replay_many_all_identical_exits_0(recordings, capsys):
     assert "2 recordings: 2 bit-identical, 0 differ, 0 failed" in capsys.readouterr().out
 
 
+def test_one_file_named_twice_is_replayed_once(recordings, tmp_path, capsys, monkeypatch):
+    """The same file as ``rec1.mcap`` and ``./rec1.mcap`` (or through a link) was replayed and counted
+    twice; two files of one name in different folders are told apart by their paths."""
+    import shutil
+
+    from edge.cli import main
+
+    monkeypatch.chdir(recordings)
+    (tmp_path / "link.mcap").symlink_to(recordings / "rec1.mcap")
+    assert main(["replay", "rec1.mcap", "./rec1.mcap", str(tmp_path / "link.mcap"), "rec2.mcap"]) == 0
+    assert "2 recordings: 2 bit-identical" in capsys.readouterr().out
+    other = tmp_path / "again"
+    other.mkdir()
+    shutil.copy(recordings / "rec1.mcap", other / "rec1.mcap")
+    assert main(["replay", "rec1.mcap", str(other / "rec1.mcap")]) == 0
+    out = capsys.readouterr().out
+    assert "2 recordings: 2 bit-identical" in out and os.path.relpath(other / "rec1.mcap") in out
+
+
 def test_workers_without_ray_is_one_clear_error(recordings, monkeypatch, capsys):
     from edge.cli import main
 

@@ -16,7 +16,7 @@ def register(subparsers: Any) -> None:
                     "recorded depth map is reproduced, 1 on a mismatch, 2 for an unreadable file. Several files, a directory "
                     "or a glob pattern replay every recording (in parallel on Ray with --workers N) and print one "
                     "table: exit 0 when all are bit-identical, 1 otherwise.")
-    p.add_argument("file", metavar="FILE")
+    p.add_argument("file", metavar="FILE", help="recording (.mcap); or several files, a directory or a glob pattern")
     p.add_argument("--profile", help="expected profile (name or TOML): refuse a recording of another profile")
     p.add_argument("--recover", action="store_true",
                    help="the writer was killed: salvage the complete chunks into FILE.recovered.mcap first")

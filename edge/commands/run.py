@@ -357,7 +357,8 @@ def _run_service(args: argparse.Namespace, holder: dict[str, Any], received: lis
               f"{service.sensor.info.frames_per_stack} frames/stack), sensor {service.sensor.info.name}"
               + ("" if args.no_zenoh else f", zenoh {service.profile.zenoh.key('*')}")
               + (f", ROS 2 via {service.profile.ros.router}" if service.profile.ros.enabled else "")
-              + (f", Foxglove ws://127.0.0.1:{args.foxglove}" if getattr(args, "foxglove", None) is not None else "")
+              + "".join(f", Foxglove ws://127.0.0.1:{sink.port}" for sink in service.sinks  # the bound port (0: any)
+                        if type(sink).__name__ == "FoxgloveSink")
               + (f", recording {args.record}" if args.record else ""), flush=True)
         if not args.quiet:
             print("compiling / loading decoder kernels (about two minutes on a 2-core host on the very first run) ...", flush=True)

@@ -14,8 +14,8 @@ def register(subparsers: Any) -> None:
                        description="Render N stacks of the profile's moving scene with the simulated sensor "
                                    "and write them to MCAP, with the depth, confidence (and error probability) the service "
                                    "computes for them (so `edge replay` can check the file bit for bit).")
-    r.add_argument("out", metavar="OUT.mcap")
-    r.add_argument("--stacks", type=int, required=True, metavar="N")
+    r.add_argument("out", metavar="OUT.mcap", help="recording to write")
+    r.add_argument("--stacks", type=int, required=True, metavar="N", help="stacks to record")
     r.add_argument("--profile", default="sim-dlp", help="firmware profile name or TOML path (default: sim-dlp)")
     r.add_argument("--first-stack", type=int, default=0, metavar="K", help="stack id (scene time) to start at")
     r.add_argument("--raw-only", action="store_true", help="record frames only, no depth / confidence")

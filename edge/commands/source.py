@@ -87,7 +87,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     c = sub.add_parser("codes", help="auto/cross-correlation report of source codes or a searched family")
     c.add_argument("codes", nargs="*", help=f"bit strings or paper names ({', '.join(PAPER_CODES)})")
     c.add_argument("--family", nargs=2, type=int, metavar=("N", "L"), help="search N codes of length L")
-    c.add_argument("--kind", choices=("frame", "event"), default="frame")
+    c.add_argument("--kind", choices=("frame", "event"), default="frame",
+                   help="camera kind the correlations are for (default frame)")
     c.add_argument("--table", action="store_true",
                    help="N x L table of guaranteed margins under the SUM of N-1 foreign devices "
                         "(room families, no coding, time-division)")
@@ -102,11 +103,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     c.add_argument("--max-devices", type=int, default=16, metavar="N", help="largest N of --table (default 16)")
     c.set_defaults(func=_codes)
     e = sub.add_parser("event-demo", help="event-camera SL with an interfering dot projector")
-    e.add_argument("--size", default="320x240")
-    e.add_argument("--code", default="10100010")
+    e.add_argument("--size", default="320x240", help="event sensor WxH (default 320x240)")
+    e.add_argument("--code", default="10100010", help="own source code, a bit string (default 10100010)")
     e.add_argument("--flicker", type=float, default=0.0, help="ambient flicker frequency (Hz, 0 = none)")
-    e.add_argument("--periods", type=int, default=4)
+    e.add_argument("--periods", type=int, default=4, help="code periods simulated (default 4)")
     e.set_defaults(func=_event_demo)
     lc = sub.add_parser("curtain-demo", help="two light curtains with and without source codes")
-    lc.add_argument("--size", default="320x240")
+    lc.add_argument("--size", default="320x240", help="camera WxH (default 320x240)")
     lc.set_defaults(func=_curtain_demo)

@@ -66,6 +66,9 @@ class EdcScheme:
         if not isinstance(c, Code):
             raise ValueError(f"EdcScheme needs an edge.codes.Code or a code name, got {type(code).__name__}")
         membership_table(c)  # validates binary and n <= MAX_TABLE_BITS
+        if c.d_min < 2:
+            raise ValueError(f"EDC needs a code that detects errors (d_min >= 2), got {c.name!r} with d_min "
+                             f"{c.d_min}: every word is a codeword, so every pixel would pass unchecked")
         self.code = c
         self.codes = (c,)
         self.name = c.name

@@ -42,8 +42,10 @@ class FileResult:
 
 def find_recordings(specs: Iterable[str]) -> list[str]:
     """Expand files, directories (their ``*.mcap``, not recursive) and glob patterns into a sorted
-    list of paths without duplicates.  ValueError naming the spec that matched nothing."""
+    list of paths without duplicates (one file named twice, also as ``./a.mcap`` and ``a.mcap`` or
+    through a link, is replayed once).  ValueError naming the spec that matched nothing."""
     out: list[str] = []
+    seen: set[str] = set()
     for spec in specs:
         if os.path.isdir(spec):
             found = sorted(glob.glob(os.path.join(glob.escape(spec), "*.mcap")))
@@ -57,7 +59,11 @@ def find_recordings(specs: Iterable[str]) -> list[str]:
                 raise ValueError(f"pattern {spec!r} matches no file")
         else:
             raise ValueError(f"recording {spec!r} does not exist")
-        out.extend(p for p in found if p not in out)
+        for p in found:
+            real = os.path.realpath(p)
+            if real not in seen:
+                seen.add(real)
+                out.append(p)
     return out
 
 
@@ -108,6 +114,8 @@ def replay_serial(paths: Sequence[str], expected_profile: Any = None,
 def summary_lines(results: Sequence[FileResult], *, wall_s: float, workers: int, engine: str) -> list[str]:
     """The summary table: one row per file, then the totals."""
     names = [os.path.basename(r.path) for r in results]
+    if len(set(names)) < len(names):  # two files of one name in different folders: tell them apart
+        names = [os.path.relpath(r.path) for r in results]
     width = max([len("file")] + [len(n) for n in names])
     head = f"{'file':<{width}}  {'profile':<12}  stacks  identical  decode s  error"
     lines = [head, "-" * len(head)]

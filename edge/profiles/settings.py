@@ -500,6 +500,31 @@ def _check_profile(p: Profile, source: str) -> None:
     _check_access(p.zenoh, source)
 
 
+def _check_edc(p: Profile, source: str, kind: str) -> None:
+    """``edc.rounds > 0`` needs what the adaptive rounds work with (`edge.edc`): a column projector
+    (rounds re-project columns) and a code that detects errors, i.e. a binary code with d_min >= 2
+    (a pixel passes where its hard-decision word is a codeword; with d_min = 1 every word is one,
+    so nothing is ever checked) and at most `edge.codes.words.MAX_TABLE_BITS` frames (the
+    membership look-up).  It was accepted, then ignored by the other pipelines or refused at
+    start, or, with d_min = 1, published every pixel as verified."""
+    if p.edc.rounds <= 0:
+        return
+    if kind != "columns":
+        raise ProfileError(source, "edc.rounds", f"expected 0 for a {kind!r} projector (adaptive EDC rounds "
+                                                 f"re-project the columns of a column code), got {p.edc.rounds}")
+    from edge.codes import get_code
+    from edge.codes.words import MAX_TABLE_BITS
+
+    code = get_code(p.code.name)
+    why = ("it is not binary" if code.q != 2 else
+           f"it has {code.n} frames, more than the {MAX_TABLE_BITS} the look-up holds" if code.n > MAX_TABLE_BITS else
+           "its d_min is 1: every word is a codeword, so no error is ever detected" if code.d_min < 2 else "")
+    if why:
+        raise ProfileError(source, "edc.rounds", f"expected 0 with code {code.name!r}: EDC needs a binary code of at "
+                                                 f"most {MAX_TABLE_BITS} frames with d_min >= 2, and {why}; "
+                                                 f"got {p.edc.rounds}")
+
+
 def _check_pipeline(p: Profile, source: str) -> None:
     """Settings that validate one by one but make a pipeline that fails or yields no valid depth."""
     from edge.codes import get_code
@@ -518,6 +543,7 @@ def _check_pipeline(p: Profile, source: str) -> None:
         raise ProfileError(source, "decoder.method",
                            f"expected one of {', '.join(map(repr, methods))} for a {kind!r} projector, "
                            f"got {p.decoder.method!r}")
+    _check_edc(p, source, kind)
     d_lo, d_hi = p.decoder.min_disparity, p.decoder.max_disparity
     if kind == "columns":
         from edge.decode.settings import from_profile  # the decoder's own rules, one source

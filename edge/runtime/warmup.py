@@ -29,8 +29,9 @@ import numpy as np
 def switchable_variants(profile) -> list[tuple[str, Any]]:
     """[(label, profile)] the live config may switch ``profile`` to, other than itself.
 
-    Labels: ``"decoder.method=<m>"`` and ``"edc"``.  Only column-pattern profiles have variants
-    (the dots and curtain pipelines have one method each).
+    Labels: ``"decoder.method=<m>"`` and ``"edc"`` (where the profile's code allows EDC rounds,
+    `edge.profiles.settings._check_edc`).  Only column-pattern profiles have variants (the dots
+    and curtain pipelines have one method each).
     """
     from edge.decode.settings import METHODS  # the decoder's own list (dots / curtain have one method each)
     from edge.device import pipeline_kind
@@ -41,7 +42,12 @@ def switchable_variants(profile) -> list[tuple[str, Any]]:
     out = [(f"decoder.method={m}", apply_update(profile, {"decoder": {"method": m}}, source="warm-up"))
            for m in METHODS if m != profile.decoder.method]
     if profile.edc.rounds == 0:
-        out.append(("edc", apply_update(profile, {"edc": {"rounds": 1}}, source="warm-up")))
+        from edge.profiles import ProfileError
+
+        try:  # a code that detects no errors (or too long for the look-up) has no EDC variant
+            out.append(("edc", apply_update(profile, {"edc": {"rounds": 1}}, source="warm-up")))
+        except ProfileError:
+            pass
     return out
 
 
