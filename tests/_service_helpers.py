@@ -66,3 +66,17 @@ def interactive_signals() -> None:
     test would otherwise depend on how pytest itself was started."""
     for sig in (signal.SIGINT, signal.SIGHUP):
         signal.signal(sig, signal.SIG_DFL)
+
+
+def small_event_profile(**extra):
+    """event-dots at 160x120 (same optics scaled by 1/4) so the event tests stay fast."""
+    from edge.profiles import apply_update, load_profile
+
+    p = load_profile("event-dots")
+    update = {"camera": {"width": 160, "height": 120}, "projector": {"width": 160, "height": 120},
+              "geometry": {"focal_px": 125.0, "cx_camera": 80.0, "cx_projector": 80.0, "cy": 60.0},
+              "decoder": {"min_disparity": 1, "max_disparity": 32}}
+    for k, v in extra.items():
+        update.setdefault(k, {}).update(v)
+    return apply_update(p, update)
+

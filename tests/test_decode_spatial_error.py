@@ -89,4 +89,5 @@ def test_the_methods_publish_the_error_of_their_column_and_do_not_understate_it(
         above = d.valid & lit & (d.error >= 0.01)
         wrong += int((np.abs(d.column - col) > 1)[above].sum())
         expected += float(d.error[above].sum())
-    assert expected > 2.0 and wrong <= expected, (wrong, expected, moved)
+    # the method replaced some columns (where the published error is another than the best's)
+    assert moved > 0 and expected > 2.0 and wrong <= expected, (wrong, expected, moved)

@@ -62,15 +62,17 @@ def test_live_geometry_update_changes_published_depth():
     assert service.pipeline.geometry == new_geometry
 
 
-def _record_with_a_live_change(path, update, **recording):
-    """Run the service with a recording; apply `update` after two depth maps; stop five maps after
-    the first one the new profile decoded.  Returns the results."""
+def _record_with_a_live_change(path, update, profile=None, **recording):
+    """Run the service (default: the test profile) with a recording; apply `update` after two depth
+    maps; stop five maps after the first one the new profile decoded.  Returns the results and
+    the recorded files."""
     from edge.io.recording import RecordingThread
+    from edge.sensors import open_sensor
 
-    profile = load_test_profile()
+    profile = profile if profile is not None else load_test_profile()
     sink = Collect()
     recorder = RecordingThread(path, profile, **recording)
-    service = Service(profile, SimSensor(profile, max_speed=True), sinks=[sink], recorder=recorder)
+    service = Service(profile, open_sensor(profile, max_speed=True), sinks=[sink], recorder=recorder)
     changed = []
 
     def tick(svc):
@@ -143,7 +145,7 @@ def test_an_older_recording_with_a_live_change_says_why_it_differs(tmp_path, mon
     _record_with_a_live_change(path, {"decoder": {"method": "median", "max_error": 0.02}})
     report = replay_recording(path)
     assert not report.ok and report.profile_changes == 0
-    assert "live config changes" in report.mismatches[-1], report.lines()
+    assert report.notes and "live config changes" in report.notes[0], report.lines()
 
 
 def test_the_recorded_frame_tree_follows_a_live_baseline_change(tmp_path):
@@ -158,3 +160,17 @@ def test_the_recorded_frame_tree_follows_a_live_baseline_change(tmp_path):
     assert len(tfs) == 2 and xs[1] == pytest.approx(0.123) and xs[0] == pytest.approx(results[0].profile.geometry.baseline_m)
     first_new = next(r for r in results if r.profile.geometry.baseline_m == 0.123)
     assert tfs[1].log_time == first_new.timestamp_ns
+
+
+def test_an_event_recording_with_a_live_change_replays_bit_for_bit(tmp_path):
+    """The event-recording replay read no stack message, so it decoded every stack with the
+    starting profile (5 of 10 differed after a live baseline change)."""
+    from _service_helpers import small_event_profile
+    from edge.io.replay import replay_recording
+
+    path = tmp_path / "events.mcap"
+    results, _ = _record_with_a_live_change(path, {"geometry": {"baseline_m": 0.07}}, small_event_profile())
+    assert len({r.profile.geometry.baseline_m for r in results}) == 2
+    report = replay_recording(path)
+    assert report.ok and report.profile_changes == 1, report.lines()
+

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from _service_helpers import small_event_profile
 from edge.profiles import apply_update, list_profiles, load_profile
 from edge.runtime.assembly import Stack
 from edge.runtime.pipelines import make_pipeline, pipeline_kind
@@ -33,17 +34,6 @@ class Collect:
 
     def close(self):
         pass
-
-
-def small_event_profile(**extra):
-    """event-dots at 160x120 (same optics scaled by 1/4) so the event tests stay fast."""
-    p = load_profile("event-dots")
-    update = {"camera": {"width": 160, "height": 120}, "projector": {"width": 160, "height": 120},
-              "geometry": {"focal_px": 125.0, "cx_camera": 80.0, "cx_projector": 80.0, "cy": 60.0},
-              "decoder": {"min_disparity": 1, "max_disparity": 32}}
-    for k, v in extra.items():
-        update.setdefault(k, {}).update(v)
-    return apply_update(p, update)
 
 
 def test_every_shipped_profile_loads_and_names_a_simulator_scene():

@@ -207,21 +207,26 @@ def test_recording_from_before_the_error_rule_replays_with_its_rule():
 
 
 def test_replay_takes_an_older_recordings_zero_confidence_on_valid_depth():
-    """Recordings made before valid pixels got a confidence of at least 1 hold 0 there; their
-    replay computes 1 and that alone is not a mismatch (any other difference still is)."""
+    """Recordings of format 1 (made before valid pixels got a confidence of at least 1) hold 0
+    there; their replay computes 1 and that alone is not a mismatch (any other difference still
+    is).  A recording of this format (2, `edge.recording` metadata) gets no such leniency."""
     from types import SimpleNamespace
 
+    from edge.io.mcap import RecordingReader
     from edge.io.replay import ReplayReport, _compare
 
     depth = np.array([[0, 1500, 1600]], np.uint16)
     out = SimpleNamespace(depth_mm=depth, confidence=np.array([[0, 0, 40]], np.uint8), error=None)
     now = SimpleNamespace(depth_mm=depth, confidence=np.array([[0, 1, 40]], np.uint8), error=None)
     report = ReplayReport("x")
-    _compare(report, 0, now, out, None)
+    _compare(report, 0, now, out, None, old_format=True)
     assert report.stacks_matched == 1 and not report.mismatches
     other = SimpleNamespace(depth_mm=depth, confidence=np.array([[1, 0, 40]], np.uint8), error=None)
-    _compare(report, 1, other, out, None)  # 1 on invalid depth: a real difference
+    _compare(report, 1, other, out, None, old_format=True)  # 1 on invalid depth: a real difference
     assert report.stacks_matched == 1 and len(report.mismatches) == 1
+    _compare(report, 2, now, out, None)  # format 2: a valid pixel at 0 is a regression
+    assert report.stacks_matched == 1 and len(report.mismatches) == 2
+    assert RecordingReader(COMMITTED).format == 1  # the committed recording predates the record
 
 
 def test_a_recording_cut_before_its_profile_is_named_truncated(tmp_path):
@@ -236,12 +241,14 @@ def test_a_recording_cut_before_its_profile_is_named_truncated(tmp_path):
         replay_recording(cut)
 
 
-def test_replay_compares_every_depth_map_of_a_lagging_service(tmp_path):
-    """A decoder far behind its camera (queue 64, as `edge run --queue 64` allows): depth maps land
-    in the file dozens of stacks after their frames, and the stacks dropped stale never get one.
-    The recording marks dropped stacks, and replay compares every recorded depth map and counts
-    every complete stack without one (it gave up on a depth map 16 stacks late, skipped it and
-    still said bit for bit; the stale stacks were counted nowhere)."""
+@pytest.mark.parametrize("kind", ["frames", "events"])
+def test_replay_compares_every_depth_map_of_a_lagging_service(tmp_path, kind):
+    """A decoder far behind its camera: depth maps land in the file dozens of stacks after their
+    frames, and the stacks dropped stale never get one.  The recording marks dropped stacks, and
+    replay compares every recorded depth map and counts every complete stack without one (it
+    gave up on a depth map 16 stacks late, skipped it and still said bit for bit; the stale
+    stacks were counted nowhere).  The lag is made, not waited for: each decode waits until the
+    camera is `LAG` stacks ahead, more than the queue holds (stale drops) and than 16."""
     import time as _time
 
     from edge.io.mcap import RecordingReader
@@ -249,29 +256,57 @@ def test_replay_compares_every_depth_map_of_a_lagging_service(tmp_path):
     from edge.io.replay import replay_recording
     from edge.runtime.pipelines import make_pipeline
     from edge.runtime.service import Service
-    from edge.sensors.sim import SimSensor
 
-    def slow(p):
+    lag, queue = 40, 32
+
+    class Counting:
+        """The sensor, counting the frames (event slices) read from it."""
+
+        def __init__(self, inner):
+            self.inner, self.frames = inner, 0
+
+        def __getattr__(self, name):
+            return getattr(self.inner, name)
+
+        def read(self, timeout_s=1.0):
+            frame = self.inner.read(timeout_s)
+            self.frames += frame is not None
+            return frame
+
+    from _service_helpers import small_event_profile
+    from edge.sensors import open_sensor
+
+    profile = load_test_profile() if kind == "frames" else small_event_profile()
+    sensor = Counting(open_sensor(profile, max_speed=True))
+
+    def lagging(p):
         pipe = make_pipeline(p)
         process = pipe.process
 
-        def later(*a, **k):
-            _time.sleep(0.03)
-            return process(*a, **k)
+        def later(stack, *a, **k):
+            deadline = _time.monotonic() + 10.0
+            while sensor.frames < (stack.stack + lag) * sensor.info.frames_per_stack and _time.monotonic() < deadline:
+                _time.sleep(0.001)
+            return process(stack, *a, **k)
 
         pipe.process = later
         return pipe
 
-    profile = load_test_profile()
     path = tmp_path / "lag.mcap"
     rec = RecordingThread(path, profile)
-    service = Service(profile, SimSensor(profile, max_speed=True), recorder=rec, queue_capacity=64,
-                      pipeline_factory=slow, warm_variants=False)
+    service = Service(profile, sensor, recorder=rec, queue_capacity=queue, pipeline_factory=lagging,
+                      warm_variants=False)
     status = service.run(stacks=20)
     rec.close()
-    stacks = list(RecordingReader(path).stacks())
-    assert status["stacks_dropped_stale"] > 0 and any(s.dropped == "stale" for s in stacks)
-    assert len(list(RecordingReader(path).stacks(max_pending=16))) > len(stacks)  # depth maps > 16 stacks late
+    assert RecordingReader(path).format == 2
+    from edge.io.event_record import event_stacks
+
+    def stacks(**kw):
+        reader = RecordingReader(path)
+        return list(reader.stacks(**kw) if kind == "frames" else event_stacks(reader, **kw))
+
+    assert status["stacks_dropped_stale"] > 0 and any(s.dropped == "stale" for s in stacks())
+    assert len(stacks(max_pending=16)) > len(stacks())  # depth maps > 16 stacks late
     report = replay_recording(path)
     assert report.ok, report.lines()
     assert report.stacks_compared == report.stacks_matched == status["recorder"]["outputs_written"] == 20

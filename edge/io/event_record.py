@@ -29,7 +29,7 @@ is ``timestamp_ns`` and ``sequence`` the slice's sequence number.  The channel i
 from __future__ import annotations
 
 import functools
-from typing import Any, Iterator
+from typing import Any, Iterator, NamedTuple
 
 import numpy as np
 
@@ -110,39 +110,73 @@ def parse_event_slice(data: bytes) -> EventSlice:
                       int(msg.stack), int(msg.t_start_us), int(msg.t_end_us))
 
 
-def event_stacks(reader, *, max_pending: int = MAX_PENDING) -> Iterator[tuple[int, list[EventSlice], Any]]:
-    """(stack id, its event slices in file order, its `RecordedOutput` or None) of an event recording,
-    in stack order; a stack is complete once its output arrived and a later stack started, or once a
-    stack ``max_pending`` ids later was seen, or at the end of the file (``reader.problem`` then says
-    whether the file was cut short)."""
+class RecordedEventStack(NamedTuple):
+    """One stack of an event recording (`event_stacks`)."""
+
+    stack: int
+    slices: list  #: its `EventSlice` records in file order
+    output: Any = None  #: its `edge.io.mcap_reader.RecordedOutput`, or None
+    info: dict | None = None  #: its ``/<device>/stack`` message (a live change: ``profile``)
+    dropped: str | None = None  #: why the service did not decode it, where it said so
+
+
+def event_stacks(reader, *, max_pending: int = MAX_PENDING) -> Iterator[RecordedEventStack]:
+    """The stacks of an event recording, as `RecordingReader.stacks` hands on a frame recording's: a
+    stack is complete once its output arrived and a later stack started, or once the service
+    marked it dropped, or once a stack ``max_pending`` ids later was seen, or at the end of the
+    file (``reader.problem`` then says whether the file was cut short).  The topics' last parts
+    seen go to ``reader.leaves_seen``."""
     from edge.io.mcap_reader import OutputPairs
 
-    pending: dict[int, list] = {}
+    pending: dict[int, dict] = {}
     outputs = OutputPairs()
     newest: int | None = None
+    reader.leaves_seen.clear()
+
+    def entry(sid: int) -> dict:
+        return pending.setdefault(sid, {"slices": [], "output": None, "info": None, "dropped": None})
 
     def ready(sid: int) -> bool:
-        return newest is not None and ((pending[sid][1] is not None and sid < newest) or sid + max_pending <= newest)
+        e = pending[sid]
+        return e["dropped"] is not None or newest is not None and (
+            (e["output"] is not None and sid < newest) or sid + max_pending <= newest)
+
+    def hand_on(sid: int) -> RecordedEventStack:
+        e = pending.pop(sid)
+        return RecordedEventStack(sid, e["slices"], e["output"], e["info"], e["dropped"])
 
     for m in reader.messages():
         leaf = m.topic.rsplit("/", 1)[-1]
+        reader.leaves_seen.add(leaf)
         sid = None
         if leaf == TOPIC_LEAF:
             s = parse_event_slice(m.value)
             sid = s.stack
-            pending.setdefault(sid, [[], None])[0].append(s)
+            entry(sid)["slices"].append(s)
+            newest = sid if newest is None else max(newest, sid)
+        elif leaf == "stack" and isinstance(m.value, dict):
+            sid = int(m.value.get("stack", -1))
+            if "dropped" in m.value:
+                entry(sid)["dropped"] = str(m.value["dropped"])
+            else:
+                entry(sid)["info"] = m.value
         else:
             out = outputs.take(leaf, m)
             if out is not None:
                 sid = out.stack
-                pending.setdefault(sid, [[], None])[1] = out
+                entry(sid)["output"] = out
+                newest = sid if newest is None else max(newest, sid)
         if sid is None:
             continue
-        newest = sid if newest is None else max(newest, sid)
         for k in sorted(pending):
             if ready(k):
-                slices, out = pending.pop(k)
-                yield k, slices, out
+                yield hand_on(k)
     for k in sorted(pending):
-        slices, out = pending.pop(k)
-        yield k, slices, out
+        yield hand_on(k)
+
+
+def event_slices(reader) -> Iterator[EventSlice]:
+    """The event slices of a recording in file (capture) order."""
+    for m in reader.messages():
+        if m.topic.rsplit("/", 1)[-1] == TOPIC_LEAF:
+            yield parse_event_slice(m.value)

@@ -61,8 +61,10 @@ stack from which it decoded is the one whose ``/<device>/stack`` message carries
 Further topics are added through `edge.io.mcap_writer.Recorder.register_channel` (same
 ``/<device>/<leaf>`` naming); `topics` lists the standard ones that every recording has.
 
-Metadata records: ``edge.profile`` {"name", "json" (profile_to_dict as JSON), "sha256"} and
-``edge.sensor`` (free str -> str map from the backend). Attachment ``profile.json`` holds the same
+Metadata records: ``edge.profile`` {"name", "json" (profile_to_dict as JSON), "sha256"},
+``edge.sensor`` (free str -> str map from the backend) and ``edge.recording`` {"format"}: the
+recording format, `RECORDING_FORMAT` (absent: 1; 2: a valid pixel's confidence is at least 1,
+stacks carry live profile changes and dropped-stack markers). Attachment ``profile.json`` holds the same
 profile JSON (media type application/json). MCAP header profile: ``edge``.
 """
 
@@ -85,6 +87,8 @@ __all__ = [
     "MCAP_PROFILE",
     "PROFILE_METADATA",
     "SENSOR_METADATA",
+    "RECORDING_METADATA",
+    "RECORDING_FORMAT",
     "PROFILE_ATTACHMENT",
     "topics",
     "image_to_raw",
@@ -100,6 +104,9 @@ __all__ = [
 MCAP_PROFILE = "edge"
 PROFILE_METADATA = "edge.profile"
 SENSOR_METADATA = "edge.sensor"
+RECORDING_METADATA = "edge.recording"
+#: Format of the recordings this code writes (see the module docstring; 1 = older, no record).
+RECORDING_FORMAT = 2
 PROFILE_ATTACHMENT = "profile.json"
 
 # Encodings written for each dtype, and the dtype read back for each encoding.

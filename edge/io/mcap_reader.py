@@ -41,7 +41,7 @@ from mcap.records import Attachment, Channel, Message, Metadata, Schema
 
 from edge.profiles import Profile, ProfileError, changed_keys, profile_from_dict
 
-from .mcap_format import PROFILE_METADATA, SENSOR_METADATA, raw_to_image
+from .mcap_format import PROFILE_METADATA, RECORDING_METADATA, SENSOR_METADATA, raw_to_image
 from .mcap_scan import CORRUPT_ERRORS, MCAP_MAGIC, RecordScanner, describe_error, summary_definitions
 
 __all__ = [
@@ -265,6 +265,15 @@ class RecordingReader:
                                      source=f"{self.path} (recorded profile)")
         except (ValueError, ProfileError) as exc:
             raise RecordingError(f"{self.path}: recorded profile is invalid: {exc}") from None
+
+    @property
+    def format(self) -> int:
+        """The recording format (`edge.io.mcap_format.RECORDING_FORMAT`; 1 for a recording without the
+        record, made before it existed)."""
+        try:
+            return int(self._metadata.get(RECORDING_METADATA, {}).get("format", 1))
+        except ValueError:
+            return 1
 
     @property
     def sensor_metadata(self) -> dict[str, str]:

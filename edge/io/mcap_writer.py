@@ -49,6 +49,8 @@ from .mcap_format import (
     MCAP_PROFILE,
     PROFILE_ATTACHMENT,
     PROFILE_METADATA,
+    RECORDING_FORMAT,
+    RECORDING_METADATA,
     SENSOR_METADATA,
     camera_calibration,
     frame_transforms,
@@ -161,6 +163,7 @@ class Recorder:
             text, digest = profile_json(profile_to_dict(profile))
             now = time.time_ns()
             self._writer.add_metadata(PROFILE_METADATA, {"name": profile.name, "json": text, "sha256": digest})
+            self._writer.add_metadata(RECORDING_METADATA, {"format": str(RECORDING_FORMAT)})
             self._writer.add_attachment(create_time=now, log_time=now, name=PROFILE_ATTACHMENT,
                                         media_type="application/json", data=text.encode())
             if sensor_metadata:

@@ -16,6 +16,7 @@ import time
 from collections import deque
 from typing import Any
 
+from edge.io.mcap_reader import MAX_PENDING
 from edge.io.mcap_writer import Recorder
 
 from ..sensors.base import EventSlice, Frame, parse_projector_frame
@@ -116,8 +117,11 @@ class RecordingThread:
     Rotation: with ``max_bytes`` and/or ``max_seconds`` the recording is a series of files
     ``<stem>-<UTC start>-0000.mcap``, ``...-0001.mcap``, ... (`rotated_path`); a new file starts at the first
     stack boundary after the current file reached the size or age, and the previous file stays
-    open until the depth output of its last stack is written, so every file holds whole stacks
-    with their outputs and replays on its own.  ``keep`` (> 0) deletes the oldest rotated files of
+    open until the stacks it holds are settled (the depth output of its last stack or of a later
+    one is written, or the service marks a decode error there, `on_stack_dropped`), or
+    `MAX_PENDING` stacks passed; the next rotation waits for that
+    (the current file grows past its limit meanwhile), so every file holds whole stacks with
+    their outputs and replays on its own.  ``keep`` (> 0) deletes the oldest rotated files of
     ``path`` (earlier series included, e.g. from before a restart) beyond that many: a bounded disk
     footprint for a long unattended run.
 
@@ -270,7 +274,7 @@ class RecordingThread:
         """Queue the ``/<device>/stack`` message of a complete stack the service will not decode
         (``{"stack", "dropped": reason}``: "stale", "decode error"), so that a replay does not wait
         for its depth map; never dropped for lack of queue space (it is small)."""
-        if not self.outputs:
+        if not self.outputs or self.stopped:
             return
         with self._cond:
             if self._closing:
@@ -283,18 +287,23 @@ class RecordingThread:
             self.recorder.write_config_change(item)
             return
         if kind == "dropped":
-            self._target(item["stack"]).write_stack(item, timestamp_ns=time.time_ns())
+            rec = self._target(item["stack"])
+            rec.write_stack(item, timestamp_ns=time.time_ns())
+            # the decode thread takes stacks in order: a decode error at the last stack settles every
+            # stack before it too (a stale drop does not: an earlier stack may still be decoding)
+            if rec is self._old and item["dropped"] == "decode error" and item["stack"] >= self._old_last_stack:
+                self._old = None
+                self._finish(rec)
             return
         stack = int(getattr(item, "stack", 0))
         if kind == "frame":
             if self.rotate and self._last_stack is not None and stack > self._last_stack:
-                if self._old is not None and stack >= self._old_last_stack + 3:
-                    old, self._old = self._old, None   # its last output never came (dropped stack)
+                if self._old is not None and stack >= self._old_last_stack + MAX_PENDING:
+                    # its last stack got neither a depth map nor a dropped marker this long (the service
+                    # marks each stack it drops; a depth map trails its frames by at most its queue)
+                    old, self._old = self._old, None
                     self._finish(old)
-                if self._rotation_due():
-                    if self._old is not None:
-                        old, self._old = self._old, None
-                        self._finish(old)
+                if self._rotation_due() and self._old is None:  # else once the previous file is settled
                     self._old, self._old_last_stack = self.recorder, self._last_stack
                     self.recorder = self._open_next()
             self._last_stack = stack if self._last_stack is None else max(self._last_stack, stack)
@@ -351,8 +360,8 @@ class RecordingThread:
             self._write_s += time.perf_counter() - t0
 
     def _count_lost(self, kind: str) -> None:
-        if kind == "config":
-            return  # config-change records are metadata, not frames or outputs
+        if kind in ("config", "dropped"):
+            return  # config changes and dropped-stack markers are metadata, not frames or outputs
         if kind == "frame":
             self.frames_lost += 1
         else:

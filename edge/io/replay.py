@@ -40,6 +40,7 @@ class ReplayReport:
     stacks_incomplete: int = 0
     profile_changes: int = 0
     mismatches: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)  # what explains the mismatches (not counted as one)
     problem: str = ""
 
     @property
@@ -53,6 +54,7 @@ class ReplayReport:
                f"output (not decoded by the service), {self.stacks_incomplete} incomplete (dropped)"
                + (f", {self.profile_changes} live profile change(s) replayed" if self.profile_changes else "")]
         out += [f"  mismatch: {m}" for m in self.mismatches[:20]]
+        out += [f"  note: {n}" for n in self.notes]
         if self.problem:
             out.append(f"  problem: {self.problem}")
         if self.stacks_compared == 0 and not self.problem:
@@ -90,8 +92,9 @@ def replay_recording(path: str | os.PathLike[str], *, expected_profile: Any = No
     report = ReplayReport(os.fspath(path), reader.profile.name)
     pipeline = make_pipeline(reader.profile)
     assembler = StackAssembler(pipeline.schedule)
+    old_format = reader.format < 2
     if pipeline_kind(reader.profile) == "event-dots":
-        return _replay_events(reader, pipeline, assembler, report, on_result)
+        return _replay_events(reader, pipeline, assembler, report, on_result, path, old_format)
     try:
         for recorded in reader.stacks():
             if not recorded.frames:
@@ -99,17 +102,10 @@ def replay_recording(path: str | os.PathLike[str], *, expected_profile: Any = No
             report.stacks_read += 1
             regular = [to_frame(f) for f in recorded.frames if parse_projector_frame(f.projector_frame).edc_round == 0]
             masked = [to_frame(f) for f in recorded.frames if parse_projector_frame(f.projector_frame).edc_round > 0]
-            if recorded.output is None:  # not decoded by the service (dropped stale, a decode error, the stop)
-                # counted without the assembler, which would take a late-yielded stack as out of order
-                if len(regular) >= len(pipeline.schedule):
-                    report.stacks_without_output += 1
-                else:
-                    report.stacks_incomplete += 1
+            pipeline = _switch(report, path, recorded.stack, recorded.info, pipeline)
+            if recorded.output is None:
+                _count_without_output(report, len(regular), len(pipeline.schedule))
                 continue
-            changed = (recorded.info or {}).get("profile")
-            if changed is not None:  # a live change took effect at this stack: decode as the service did
-                pipeline = make_pipeline(_changed_profile(path, recorded.stack, changed))
-                report.profile_changes += 1
             stack = None
             for frame in regular:
                 stack = assembler.push(frame, received_ns=frame.timestamp_ns) or stack
@@ -126,17 +122,42 @@ def replay_recording(path: str | os.PathLike[str], *, expected_profile: Any = No
                 return got
 
             result = pipeline.process(stack, recorded_masked)
-            _compare(report, recorded.stack, result, out, on_result)
+            _compare(report, recorded.stack, result, out, on_result, old_format)
         assembler.flush()
     except RecordingError as exc:  # strict=False normally reports via reader.problem; be safe
         report.problem = str(exc)
+    return _finish(report, reader, assembler)
+
+
+def _switch(report: ReplayReport, path, stack_id: int, info: dict | None, pipeline: Any) -> Any:
+    """The pipeline for a recorded stack: rebuilt with the profile its ``/stack`` info carries (a live
+    change took effect there; applied whether or not the stack has a depth map, so a later stack
+    is not decoded with the old one), else ``pipeline``."""
+    changed = (info or {}).get("profile")
+    if changed is None:
+        return pipeline
+    report.profile_changes += 1
+    return make_pipeline(_changed_profile(path, stack_id, changed))
+
+
+def _count_without_output(report: ReplayReport, frames: int, per_stack: int) -> None:
+    """A recorded stack with no depth map (dropped stale, a decode error, the stop): complete or not,
+    counted without the assembler, which would take a late-handed stack as out of order."""
+    if frames >= per_stack:
+        report.stacks_without_output += 1
+    else:
+        report.stacks_incomplete += 1
+
+
+def _finish(report: ReplayReport, reader: Any, assembler: StackAssembler) -> ReplayReport:
+    """The counts and problems every replay ends with."""
     report.stacks_incomplete += assembler.counters.stacks_incomplete
     if reader.problem and not report.problem:
         report.problem = reader.problem
     if report.mismatches and not report.profile_changes and "config_change" in reader.leaves_seen:
-        report.mismatches.append("the recording holds live config changes (/config_change) but no stack says "
-                                 "where they took effect (recorded before stacks carried their profile): the "
-                                 "stacks after a change were decoded with the starting profile")
+        report.notes.append("the recording holds live config changes (/config_change) but no stack says "
+                            "where they took effect (recorded before stacks carried their profile): the "
+                            "stacks after a change were decoded with the starting profile")
     return report
 
 
@@ -154,14 +175,16 @@ def _changed_profile(path: str | os.PathLike[str], stack_id: int, data: Any):
 
 
 def _compare(report: ReplayReport, stack_id: int, result: DepthResult, out: Any,
-             on_result: Callable[[DepthResult], None] | None) -> None:
+             on_result: Callable[[DepthResult], None] | None, old_format: bool = False) -> None:
+    """Compare one replayed result with the recorded output (``old_format``: a recording of format 1,
+    whose valid pixels may hold confidence 0, `_old_zero_confidence`)."""
     if on_result is not None:
         on_result(result)
     report.stacks_compared += 1
     problems = []
     if not np.array_equal(result.depth_mm, out.depth_mm):
         problems.append(_describe_diff("depth", result.depth_mm, out.depth_mm))
-    if not np.array_equal(result.confidence, out.confidence) and not _old_zero_confidence(result, out):
+    if not np.array_equal(result.confidence, out.confidence) and not (old_format and _old_zero_confidence(result, out)):
         problems.append(_describe_diff("confidence", result.confidence, out.confidence))
     recorded_error = getattr(out, "error", None)
     if recorded_error is not None or result.error is not None:  # bit for bit, NaN included
@@ -191,32 +214,29 @@ def _old_zero_confidence(result: DepthResult, out: Any) -> bool:
 
 
 def _replay_events(reader: Any, pipeline: Any, assembler: StackAssembler, report: ReplayReport,
-                   on_result: Callable[[DepthResult], None] | None) -> ReplayReport:
-    """The event-recording branch of `replay_recording`."""
+                   on_result: Callable[[DepthResult], None] | None, path, old_format: bool) -> ReplayReport:
+    """The event-recording branch of `replay_recording` (the same steps over event slices)."""
     from edge.io.mcap import RecordingError
 
     from .event_record import event_stacks
 
     try:
-        for stack_id, slices, out in event_stacks(reader):
-            if not slices:
+        for rec in event_stacks(reader):
+            if not rec.slices:
                 continue
             report.stacks_read += 1
+            pipeline = _switch(report, path, rec.stack, rec.info, pipeline)
+            if rec.output is None:
+                _count_without_output(report, len(rec.slices), len(pipeline.schedule))
+                continue
             stack = None
-            for s in slices:
+            for s in rec.slices:
                 stack = assembler.push(s, received_ns=s.timestamp_ns) or stack
             if stack is None:
                 assembler.flush()
                 continue
-            if out is None:
-                report.stacks_without_output += 1
-                continue
-            _compare(report, stack_id, pipeline.process(stack), out, on_result)
+            _compare(report, rec.stack, pipeline.process(stack), rec.output, on_result, old_format)
         assembler.flush()
     except (RecordingError, ValueError) as exc:
         report.problem = str(exc)
-    report.stacks_incomplete += assembler.counters.stacks_incomplete
-    if reader.problem and not report.problem:
-        report.problem = reader.problem
-    return report
-
+    return _finish(report, reader, assembler)

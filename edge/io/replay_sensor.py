@@ -54,10 +54,9 @@ class ReplaySensor:
     def _records(self):
         """Frames (or, for an event recording, `EventSlice` records) in file order."""
         if self.events:
-            from edge.io.event_record import event_stacks
+            from edge.io.event_record import event_slices
 
-            for _, slices, _ in event_stacks(self.reader):
-                yield from slices
+            yield from event_slices(self.reader)  # capture order, as the frames below
             return
         for f in self.reader.frames():  # capture order (stacks() hands stacks on as their outputs complete)
             yield Frame(f.image, int(f.sequence), int(f.timestamp_ns), float(f.exposure_us),

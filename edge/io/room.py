@@ -290,9 +290,9 @@ class RoomLink:
         if (me, tuple(members)) == self._seen or self.service is None:
             return
         self._seen = (me, tuple(members))
-        # from the running profile: the live updates accepted so far stay (the start-up profile undid them)
-        new = room_profile(self.service.profile, me)
-        self.service.switch_profile(new, self.service.pipeline_factory(new))
+        # from the running profile: the live updates accepted so far stay (the start-up profile undid
+        # them); read and applied under the service's config lock, so a concurrent update keeps the claim
+        self.service.switch_profile(lambda running: room_profile(running, me))
 
     def _on_lost(self, exc: Exception) -> None:
         if self.service is not None:

@@ -100,6 +100,7 @@ class Service:
         self._threads: list[threading.Thread] = []
         self._pending_profile = None
         self._lock = threading.Lock()
+        self._config_lock = threading.RLock()  # one profile change at a time (live updates, room claims)
         self._latency_s: deque[float] = deque(maxlen=256)
         self._decode_s: deque[float] = deque(maxlen=256)
         self._result_times: deque[float] = deque(maxlen=64)
@@ -156,6 +157,10 @@ class Service:
         """
         from edge.profiles import live_update, profile_to_dict
 
+        with self._config_lock:  # read, build and publish as one step against a concurrent room change
+            return self._update_config(update, live_update, profile_to_dict)
+
+    def _update_config(self, update, live_update, profile_to_dict):
         try:
             new, changed = live_update(self.profile, update, source="config update")
             self._check_warm(self.profile, new)
@@ -229,16 +234,21 @@ class Service:
             raise errors[0]
         return self.warm_up_report.done and not self._stop.is_set()
 
-    def switch_profile(self, new, pipeline=None) -> None:
+    def switch_profile(self, new) -> None:
         """Apply a profile chosen by the service itself (a changed room claim: another source code or
-        the other members' codes) between stacks, with ``pipeline`` (default: built from ``new``); the
-        stack schedule must stay the same.  Not for user updates (those go through `update_config`)."""
-        pipeline = pipeline if pipeline is not None else self.pipeline_factory(new)
-        if not np.array_equal(np.asarray(pipeline.schedule), np.asarray(self.pipeline.schedule)):
-            raise ValueError(f"profile switch would change the stack schedule of {self.profile.name!r}")
-        with self._lock:
-            self._pending_profile = (new, pipeline, ["room"])  # budget-checked like a live change
-            self.profile = new
+        the other members' codes) between stacks.  ``new``: the profile, or a function of the running
+        profile that returns it (read, built and published under the same lock as `update_config`,
+        so that neither undoes a concurrent other).  The pipeline is built with `pipeline_factory`;
+        the stack schedule must stay the same.  Not for user updates (those go through
+        `update_config`)."""
+        with self._config_lock:
+            new = new(self.profile) if callable(new) else new
+            pipeline = self.pipeline_factory(new)
+            if not np.array_equal(np.asarray(pipeline.schedule), np.asarray(self.pipeline.schedule)):
+                raise ValueError(f"profile switch would change the stack schedule of {self.profile.name!r}")
+            with self._lock:
+                self._pending_profile = (new, pipeline, ["room"])  # budget-checked like a live change
+                self.profile = new
 
     # -- threads ------------------------------------------------------------------------------
     def _capture_loop(self) -> None:
