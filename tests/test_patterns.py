@@ -100,3 +100,19 @@ def test_cli_codes(capsys):
     assert "best: CRC-5 0x15" in capsys.readouterr().out
     assert main(["codes", "show", "no-such-code"]) == 2
     assert main(["codes", "edc-search", "--widths", "2-4"]) == 2
+
+
+def test_a_second_set_refuses_or_replaces_the_first(tmp_path, capsys):
+    """Writing a shorter set into a directory that held a longer one left the old pattern_*.png
+    behind (22 ecc-22-10 frames, then 10 gray-10 frames: 12 stale ones a slideshow would project)."""
+    from edge.cli import main
+
+    d = tmp_path / "set"
+    assert main(["patterns", "write", "--size", "64x48", "--code", "ecc-22-10", str(d)]) == 0
+    assert main(["patterns", "write", "--size", "64x48", "--code", "gray-10", str(d)]) == 2
+    assert "holds a pattern set already" in capsys.readouterr().err
+    assert len(list(d.glob("pattern_*.png"))) == 22  # refused: nothing touched
+    (d / "notes.txt").write_text("mine")
+    assert main(["patterns", "write", "--size", "64x48", "--code", "gray-10", "--overwrite", str(d)]) == 0
+    assert sorted(p.name for p in d.glob("pattern_*.png")) == [f"pattern_{i:02d}.png" for i in range(10)]
+    assert (d / "notes.txt").read_text() == "mine"  # only the set's own files are replaced

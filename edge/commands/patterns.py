@@ -24,7 +24,7 @@ def _write(args: argparse.Namespace) -> int:
                                  f"ceil(log2) bits, columns then rows), got {value!r}")
         if args.inverse:
             raise ValueError("--inverse: does not apply to --layout opencv-graycode (it always has inverse frames)")
-        m = write_opencv_graycode(args.directory, width, height, step=args.stripe)
+        m = write_opencv_graycode(args.directory, width, height, step=args.stripe, overwrite=args.overwrite)
         cols, rows = m["axes"]["columns"], m["axes"]["rows"]
         print(f"wrote {len(m['frames'])} frames of OpenCV's GrayCodePattern for a {m['grid'][0]}x{m['grid'][1]} grid "
               f"({width}x{height} pixels, step {args.stripe}): {cols['code']} columns and {rows['code']} rows, each "
@@ -33,7 +33,7 @@ def _write(args: argparse.Namespace) -> int:
     code = get_code(args.code or DEFAULT_CODE)
     orientation = args.orientation or "columns"
     manifest = write_patterns(code, args.directory, width, height, stripe=args.stripe, orientation=orientation,
-                              inverse=args.inverse)
+                              inverse=args.inverse, overwrite=args.overwrite)
     print(f"wrote {len(manifest['patterns'])} patterns + white/black of {code.name} ({width}x{height}, "
           f"stripe {args.stripe}, {orientation}{', with inverses' if args.inverse else ''}, "
           f"{manifest['columns_used']} of {code.size} codewords) and manifest.json to {args.directory}")
@@ -59,4 +59,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--inverse", action="store_true",
                    help="--layout edge: follow every pattern frame by its inverse (255 minus it)")
     p.add_argument("directory", help="output directory")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace a pattern set already in DIR (its pattern_*.png, white/black and manifest; "
+                        "without it such a directory is refused: fewer new frames would leave old ones behind)")
     p.set_defaults(func=_write)

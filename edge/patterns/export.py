@@ -21,13 +21,33 @@ from .render import calibration, render
 ORIENTATIONS = ("columns", "rows", "both")
 
 
+#: The files a pattern set writes (and an earlier set in the same directory may have left).
+SET_FILES = ("pattern_*.png", "white.png", "black.png", MANIFEST)
+
+
+def _prepare(directory: str | Path, overwrite: bool) -> Path:
+    """The output directory, created; FileExistsError where it holds a pattern set already (its
+    frames would mix with the new ones: fewer new frames leave old ``pattern_*.png`` behind), unless
+    ``overwrite``, which removes that set's files first (nothing else in the directory)."""
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    old = sorted({f for pattern in SET_FILES for f in out.glob(pattern) if f.is_file()})
+    if old and not overwrite:
+        raise FileExistsError(f"{out} holds a pattern set already ({len(old)} files: {old[0].name}, ...); "
+                              f"choose an empty directory or pass --overwrite to replace it")
+    for f in old:
+        f.unlink()
+    return out
+
+
 def write_patterns(code: Code, directory: str | Path, width: int, height: int, *, stripe: int = 1,
-                   orientation: str = "columns", inverse: bool = False) -> dict:
+                   orientation: str = "columns", inverse: bool = False, overwrite: bool = False) -> dict:
     """Write ``pattern_00.png`` .. (frame order), ``white.png``, ``black.png`` and ``manifest.json``.
 
     orientation: ``"columns"`` (code along x), ``"rows"`` (along y) or ``"both"`` (the column
     frames, then the row frames).  inverse: follow every pattern frame by its inverse (255 minus
-    it), as OpenCV's layout does.  Returns the manifest: the format-1 keys of
+    it), as OpenCV's layout does.  overwrite: replace a pattern set in ``directory`` (else
+    FileExistsError, `_prepare`).  Returns the manifest: the format-1 keys of
     `edge.patterns.manifest` plus the code's name, n, k, q, d_min, ``columns_used`` (cells of the
     first axis), ``mapping``, ``levels`` and ``patterns`` (code frames in projection order).
     """
@@ -36,8 +56,7 @@ def write_patterns(code: Code, directory: str | Path, width: int, height: int, *
     axes = ("columns", "rows") if orientation == "both" else (orientation,)
     rendered = [(axis, render(code, width, height, stripe=stripe, orientation=axis)) for axis in axes]
     white, black = calibration(width, height)
-    out = Path(directory)
-    out.mkdir(parents=True, exist_ok=True)
+    out = _prepare(directory, overwrite)
     total = sum(f.shape[0] for _, f in rendered) * (2 if inverse else 1)
     digits = max(2, len(str(total - 1)))
     files: list[str] = []
@@ -71,16 +90,16 @@ def write_patterns(code: Code, directory: str | Path, width: int, height: int, *
     return manifest
 
 
-def write_opencv_graycode(directory: str | Path, width: int, height: int, *, step: int = 1) -> dict:
+def write_opencv_graycode(directory: str | Path, width: int, height: int, *, step: int = 1,
+                          overwrite: bool = False) -> dict:
     """Write OpenCV GrayCodePattern's frames for a ``width x height`` projector (``step`` pixels per
     Gray-code cell) as ``pattern_00.png`` .. ``pattern_NN.png`` (the last two white and black, the
     names and order of procam-calibration's ``gen_graycode_imgs.py``) plus ``manifest.json``.
-    Returns the manifest."""
+    overwrite: as `write_patterns`.  Returns the manifest."""
     gw, gh = grid(width, height, step)
     bc, br = bits(gw, gh)
     stack = opencv_graycode(width, height, step=step)
-    out = Path(directory)
-    out.mkdir(parents=True, exist_ok=True)
+    out = _prepare(directory, overwrite)
     roles: list[tuple[str, str | None, int | None]] = []
     for axis, nbits in (("columns", bc), ("rows", br)):
         for b in range(nbits):
