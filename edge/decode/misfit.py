@@ -41,7 +41,7 @@ from numba import njit, prange
 
 from ..capture import CodedCapture
 from ..codes import Code
-from .posterior import FULL_SCALE_SAMPLE, _samples, _xtab
+from .posterior import FULL_SCALE_SAMPLE, _ls_levels, _samples, _xtab
 
 #: A right pixel misfits with about this probability (the chi2 tail of the test).
 MISFIT_LEVEL = 1e-6
@@ -96,11 +96,7 @@ def _misfit_stat(frames, white, black, scale, xtab, best, a, beta, out):
             sr[xx] += w_
             sr[xx] += b_
             top[xx] = max(top[xx], max(w_, b_))
-            den = m * sxx[xx] - sx[xx] * sx[xx]
-            c = (m * sxr[xx] - sx[xx] * sr[xx]) / den if den > 0 else 0.0
-            if c < 0.0:
-                c = 0.0
-            b = (sr[xx] - c * sx[xx]) / m
+            b, c = _ls_levels(m, sx[xx], sxx[xx], sxr[xx], sr[xx])
             bb[xx] = b
             cc[xx] = c
             m1 = b + c

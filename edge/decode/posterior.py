@@ -366,6 +366,18 @@ def _row_block(frames, white, black, scale, yy, block):
 
 
 @njit(cache=True, inline="always")
+def _ls_levels(m, sx, sxx, sxr, sr):
+    """Least-squares (b, c) of r = b + c x from the sums over m samples of x, x**2, x r and r; c
+    clamped at 0 (then b is the mean).  The one place of this arithmetic for the CPU kernels
+    (`_fit`, `_lane_nll`, `edge.decode.misfit`), so that their levels agree bit for bit."""
+    den = m * sxx - sx * sx
+    c = (m * sxr - sx * sr) / den if den > 0 else 0.0
+    if c < 0.0:
+        c = 0.0
+    return (sr - c * sx) / m, c
+
+
+@njit(cache=True, inline="always")
 def _fit(buf, xs, row, n, xtab):
     """Least-squares (b, c) of r = b + c x over the m samples for codebook row `row`."""
     m = n + 2
@@ -383,12 +395,7 @@ def _fit(buf, xs, row, n, xtab):
     xs[n + 1] = 0.0
     for i in range(m):
         sr += buf[i]
-    den = m * sxx - sx * sx
-    c = (m * sxr - sx * sr) / den if den > 0 else 0.0
-    if c < 0.0:
-        c = 0.0
-    b = (sr - c * sx) / m
-    return b, c
+    return _ls_levels(m, sx, sxx, sxr, sr)
 
 
 @njit(cache=True, parallel=True)
@@ -699,11 +706,7 @@ def _lane_nll(R, sr, X, rows, n, xtab, a, beta, S, out_l, out_q, out_c):
     l0 = S[7]
     l1 = S[8]
     for l in range(L):
-        den = m * sxx[l] - sx[l] * sx[l]
-        c = (m * sxr[l] - sx[l] * sr[l]) / den if den > 0 else 0.0
-        if c < 0.0:
-            c = 0.0
-        b = (sr[l] - c * sx[l]) / m
+        b, c = _ls_levels(m, sx[l], sxx[l], sxr[l], sr[l])
         bb[l] = b
         b1[l] = b + c
         out_c[l] = c
