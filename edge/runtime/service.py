@@ -158,28 +158,25 @@ class Service:
         from edge.profiles import live_update, profile_to_dict
 
         with self._config_lock:  # read, build and publish as one step against a concurrent room change
-            return self._update_config(update, live_update, profile_to_dict)
-
-    def _update_config(self, update, live_update, profile_to_dict):
-        try:
-            new, changed = live_update(self.profile, update, source="config update")
-            self._check_warm(self.profile, new)
-            if "oak" in {k.split(".")[0] for k in changed}:
-                apply = getattr(self.sensor, "apply_settings", None)
-                if apply is None:
-                    raise ConfigRejected(f"sensor {self.sensor.info.name!r} has no OAK emitters to set")
-                apply(new.oak)  # ValueError -> rejected, the running settings are kept
-            pipeline = self.pipeline_factory(new)
-        except ValueError:
+            try:
+                new, changed = live_update(self.profile, update, source="config update")
+                self._check_warm(self.profile, new)
+                if "oak" in {k.split(".")[0] for k in changed}:
+                    apply = getattr(self.sensor, "apply_settings", None)
+                    if apply is None:
+                        raise ConfigRejected(f"sensor {self.sensor.info.name!r} has no OAK emitters to set")
+                    apply(new.oak)  # ValueError -> rejected, the running settings are kept
+                pipeline = self.pipeline_factory(new)
+            except ValueError:
+                with self._lock:
+                    self.counters.config_rejected += 1
+                raise
+            change = {"time_ns": time.time_ns(), "keys": changed}
             with self._lock:
-                self.counters.config_rejected += 1
-            raise
-        change = {"time_ns": time.time_ns(), "keys": changed}
-        with self._lock:
-            self._pending_profile = (new, pipeline, changed)
-            self.profile = new
-            self.counters.config_updates += 1
-            self.last_config_change = change
+                self._pending_profile = (new, pipeline, changed)
+                self.profile = new
+                self.counters.config_updates += 1
+                self.last_config_change = change
         on_change = getattr(self.recorder, "on_config_change", None)
         if on_change is not None:  # the recording says when the decoding settings changed, and to what
             try:
