@@ -34,7 +34,7 @@ from typing import Any, Iterator, NamedTuple
 import numpy as np
 
 from ..sensors.base import EventSlice
-from .mcap_reader import MAX_PENDING
+from .mcap_reader import MAX_PENDING, stack_complete
 
 SCHEMA_NAME = "edge.EventSlice"
 TOPIC_LEAF = "events"
@@ -138,8 +138,7 @@ def event_stacks(reader, *, max_pending: int = MAX_PENDING) -> Iterator[Recorded
 
     def ready(sid: int) -> bool:
         e = pending[sid]
-        return e["dropped"] is not None or newest is not None and (
-            (e["output"] is not None and sid < newest) or sid + max_pending <= newest)
+        return stack_complete(sid, e["output"] is not None, e["dropped"] is not None, newest, max_pending)
 
     def hand_on(sid: int) -> RecordedEventStack:
         e = pending.pop(sid)

@@ -69,6 +69,13 @@ _NOT_DECODING = ("description", "sensor.", "zenoh.", "recording.", "sim.")
 MAX_PENDING = 72
 
 
+def stack_complete(stack: int, has_output: bool, dropped: bool, newest: int | None, max_pending: int) -> bool:
+    """Whether a recorded stack can be handed on (`RecordingReader.stacks`, `edge.io.event_record.event_stacks`):
+    the service marked it dropped, or its output arrived and a later stack started (``newest``: the
+    largest stack id seen), or a stack ``max_pending`` ids later was seen."""
+    return dropped or newest is not None and ((has_output and stack < newest) or stack + max_pending <= newest)
+
+
 class RecordingError(ValueError):
     """Any problem with a recording (one line)."""
 
@@ -436,8 +443,7 @@ class RecordingReader:
         newest = None
 
         def ready(s: RecordedStack) -> bool:
-            return s.dropped is not None or newest is not None and ((s.output is not None and s.stack < newest)
-                                                                    or s.stack + max_pending <= newest)
+            return stack_complete(s.stack, s.output is not None, s.dropped is not None, newest, max_pending)
 
         def flush(force: bool) -> Iterator[RecordedStack]:
             for sid in sorted(open_stacks):
