@@ -231,6 +231,19 @@ def test_event_filter_bad_inputs_and_out_of_sensor():
     assert filter_events(np.empty(0, EVENT_DTYPE), "1101", width=10, height=10, slot_us=100).kept == 0
 
 
+
+def test_event_filter_codes_longer_than_127_slots():
+    # slots of events were stored as int8: a slot >= 128 wrapped negative and the polarity check read
+    # the wrong transition, so the own edges late in a long code were dropped (numpy kept them)
+    bits = "1" + "0" * 149 + "1" + "0" * 49  # L = 200: edges at slots 0, 1, 150, 151
+    ev = make_events([0] * 4, [0] * 4, [0, 10, 1500, 1510], [1, -1, 1, -1])
+    kw = dict(width=1, height=1, slot_us=10, guard_us=0, threshold=0.9)
+    r = filter_events(ev, bits, **kw)
+    np.testing.assert_array_equal(r.slot, [0, 1, 150, 151])
+    assert r.keep.all()
+    np.testing.assert_array_equal(r.keep, filter_events_numpy(ev, bits, **kw))
+
+
 # ---------------------------------------------------------------- systems
 def test_event_sl_coding_removes_interference():
     from edge.eval.event_sl import event_metrics, run_event_sl

@@ -170,7 +170,7 @@ class EventFilterResult:
 
     keep: bool (N,) per input event (False for dropped out-of-sensor events).
     period: int64 (N,) index of the code period (L slots) each event falls in.
-    slot: int8 (N,) slot of the event inside its period.
+    slot: int16 (N,) slot of the event inside its period (0..L-1).
     dropped_out_of_bounds: events whose x >= width or y >= height (ignored, counted).
     """
 
@@ -339,7 +339,7 @@ class EventMatchedFilter:
         n = t.size
         keep = np.zeros(n, np.bool_)
         period = np.zeros(n, np.int64)
-        slot = np.zeros(n, np.int8)
+        slot = np.zeros(n, np.int16)  # int8 wrapped slots >= 128 of long codes (own events dropped)
         if n:
             acc = self._ws.get(self.chunks, self.width, self.height, self.code.length)
             dropped = _event_filter_kernel(
