@@ -31,6 +31,17 @@ def test_foreign_columns_are_overlap_weighted_and_design_is_full_rank():
         joint_despread(np.zeros((8, 1, 4)), fam5[0], fam5[1:], offsets=[0.5, 1.5, 2.5, 3.5])
 
 
+
+def test_joint_filter_refuses_offsets_that_do_not_match_the_foreign_codes():
+    # zip() paired them silently: a foreign device without an offset was left out of the model
+    fam = room_family(3, 8)
+    slots = np.random.default_rng(0).random((16, 1, 4))
+    for offsets in ([], [1.5], [1.5, 2.5, 3.5]):
+        with pytest.raises(ValueError, match="2 foreign codes need 2 offsets"):
+            joint_despread(slots, fam[0], fam[1:], offsets=offsets)
+        with pytest.raises(ValueError, match="2 foreign codes need 2 offsets"):
+            design(fam[0], fam[1:], offsets, 2)
+
 @pytest.mark.parametrize("n", [2, 4])
 def test_joint_filter_keeps_own_signal_under_overlap(n):
     """Item 2 figures: N <= 4, every foreign device at most as bright as the own one, fractional offsets,

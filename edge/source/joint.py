@@ -63,6 +63,8 @@ def foreign_columns(code: SourceCode, n_slots: int, offset: float) -> np.ndarray
 
 def design(own: SourceCode, foreign: Sequence[SourceCode], offsets: Sequence[float], n_symbols: int) -> np.ndarray:
     """(n_symbols * L, n_symbols + 1 + sum_k J_k) design matrix: own symbols, ambient, foreign symbols."""
+    if len(offsets) != len(foreign):  # zip() would drop the devices without an offset from the model
+        raise ValueError(f"{len(foreign)} foreign codes need {len(foreign)} offsets, got {len(offsets)}")
     L = own.length
     n = n_symbols * L
     own_cols = np.zeros((n, n_symbols))
