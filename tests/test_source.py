@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from edge.codes.source import (
-    family, periodic_correlation, source_code, spread, worst_interference,
+    family, interference_windows, periodic_correlation, source_code, spread, worst_interference,
 )
 from edge.source.events import EVENT_DTYPE, EventSensor, event_slices, make_events, simulate_events
 from edge.source.matched_filter import (
@@ -242,6 +242,32 @@ def test_event_filter_codes_longer_than_127_slots():
     np.testing.assert_array_equal(r.slot, [0, 1, 150, 151])
     assert r.keep.all()
     np.testing.assert_array_equal(r.keep, filter_events_numpy(ev, bits, **kw))
+
+
+
+def test_event_and_window_bad_inputs_raise_one_clear_value_error():
+    # each of these raised IndexError / numpy's reduction error, or ran on: no events for an end
+    # before the last frame, thresholds no cosine reaches, division by a zero slot in the reference
+    c = source_code("1101")
+    ev = make_events([0, 1], [0, 0], [0, 10], [1, -1])
+    sen = EventSensor(2, 2)
+    with pytest.raises(ValueError, match="window length"):
+        interference_windows(c, 0)
+    with pytest.raises(ValueError, match="at least one frame"):
+        simulate_events(np.zeros((0, 2, 2)), np.zeros(0, np.int64), sen, rng=np.random.default_rng(0))
+    with pytest.raises(ValueError, match="end_us must be after"):
+        simulate_events(np.ones((2, 2, 2)), np.array([0, 10]), sen, rng=np.random.default_rng(0), end_us=5)
+    with pytest.raises(ValueError, match="structured array"):
+        list(event_slices(np.zeros(3), 5))
+    for f in (filter_events, filter_events_numpy):
+        with pytest.raises(ValueError, match="threshold"):
+            f(ev, c, width=2, height=1, slot_us=10, threshold=2.0)
+        with pytest.raises(ValueError, match="slot_us"):
+            f(ev, c, width=2, height=1, slot_us=0)
+    with pytest.raises(ValueError, match="threshold"):
+        despread_numpy(np.zeros((4, 2, 2)), c, threshold=5.0)
+    with pytest.raises(ValueError, match="off must be"):
+        despread_numpy(np.zeros((4, 2, 2)), c, off="bogus")
 
 
 # ---------------------------------------------------------------- systems

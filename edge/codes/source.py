@@ -199,6 +199,8 @@ def interference_windows(
     signed number of foreign on/off edges inside each of my slots (``kind="event"``); duplicates
     removed, windows without signal dropped.
     """
+    if length < 1:
+        raise ValueError(f"window length must be >= 1 slot, got {length}")
     if fractions < 1:
         raise ValueError(f"fractions must be >= 1, got {fractions}")
     if slot_ratio <= 0:

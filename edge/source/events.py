@@ -31,7 +31,10 @@ def check_events(events: np.ndarray) -> None:
     """Raise ValueError unless ``events`` is time-ordered (non-decreasing ``t``)."""
     from .matched_filter import _first_unsorted
 
-    t = np.asarray(events["t"]).astype(np.int64, copy=False)
+    ev = np.asarray(events)
+    if ev.dtype.names is None or "t" not in ev.dtype.names:
+        raise ValueError(f"events must be a structured array with a t field (EVENT_DTYPE), got {ev.dtype}")
+    t = ev["t"].astype(np.int64, copy=False)
     if t.size > 1:
         bad = int(_first_unsorted(t))
         if bad >= 0:
@@ -142,10 +145,14 @@ def simulate_events(
     times = np.asarray(times_us, dtype=np.int64)
     if times.shape != (inten.shape[0],):
         raise ValueError(f"times_us must be ({inten.shape[0]},), got shape {times.shape}")
+    if times.size == 0:
+        raise ValueError("intensity must hold at least one frame, got T = 0")
     if times.size > 1 and np.any(np.diff(times) <= 0):
         raise ValueError("times_us must be strictly increasing")
     if end_us is None:
         end_us = int(times[-1] + (np.median(np.diff(times)) if times.size > 1 else 1000))
+    if int(end_us) <= int(times[-1]):
+        raise ValueError(f"end_us must be after the last frame's start {int(times[-1])} us, got {end_us}")
     labels_in = np.zeros(times.size, np.uint8) if step_labels is None else np.asarray(step_labels, np.uint8)
     logi = np.log(np.maximum(inten, 0.0) + sensor.eps)
     h, w = sensor.height, sensor.width

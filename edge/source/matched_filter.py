@@ -142,6 +142,10 @@ def despread_numpy(
 ) -> Despread:
     """Plain-numpy reference of `despread` (same result; the baseline in tools/bench_matched_filter.py)."""
     code = source_code(code)
+    if off not in OFF_MODES:
+        raise ValueError(f"off must be one of {OFF_MODES}, got {off!r}")
+    if not -1.0 <= threshold <= 1.0:
+        raise ValueError(f"threshold must be in [-1, 1], got {threshold}")
     f = _check_frames(frames, code)
     L = code.length
     r = f.reshape((-1, L) + f.shape[1:]).astype(np.float64)
@@ -319,6 +323,8 @@ class EventMatchedFilter:
         self.guard_us = self.slot_us // 4 if guard_us is None else int(guard_us)
         if not 0 <= self.guard_us < self.slot_us:
             raise ValueError(f"guard_us must be in [0, slot_us), got {self.guard_us}")
+        if not -1.0 <= threshold <= 1.0:
+            raise ValueError(f"threshold must be in [-1, 1] (a cosine), got {threshold}")
         self.threshold = float(threshold)
         self.chunks = int(threads or nb.get_num_threads())
         self._ws = _Workspace()
@@ -397,11 +403,13 @@ def filter_events_numpy(events: np.ndarray, code: "SourceCode | str", *, width: 
                         slot_us: int, t0_us: int = 0, guard_us: int | None = None,
                         threshold: float = DEFAULT_EVENT_THRESHOLD) -> np.ndarray:
     """Plain-numpy reference of `filter_events` (bool keep mask; the benchmark baseline)."""
-    code = source_code(code)
+    f = EventMatchedFilter(code, width=width, height=height, slot_us=slot_us, t0_us=t0_us,  # validates
+                           guard_us=guard_us, threshold=threshold)
+    code = f.code
     x, y, t, p = _event_fields(events)
     check_events(np.asarray(events))
     L = code.length
-    guard = slot_us // 4 if guard_us is None else guard_us
+    guard = f.guard_us
     rel = t - t0_us + guard
     period = rel // (slot_us * L)
     slot = (rel - period * slot_us * L) // slot_us
