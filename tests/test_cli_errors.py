@@ -89,3 +89,22 @@ def test_a_directory_or_a_file_in_the_wrong_place_is_named_as_such(capsys, tmp_p
 
 def test_a_group_command_names_its_action(capsys):
     assert _fails(capsys, "codes", "show", "rm-2-10", expect="codewords").startswith("edge codes show: error:")
+
+
+def test_eval_outputs_that_cannot_be_written_fail_before_the_work(capsys, tmp_path, monkeypatch):
+    """`edge eval sweep` ran the whole sweep (hours without --quick) and only then failed to write
+    --out; `edge edc eval` likewise named only the OSError."""
+    import edge.eval.edc
+    import edge.eval.sweep
+
+    def never(*_a, **_k):
+        raise AssertionError("the work started before --out was checked")
+
+    monkeypatch.setattr(edge.eval.sweep, "run_sweep", never)
+    monkeypatch.setattr(edge.eval.edc, "make_gi_scene", never)
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    _fails(capsys, "eval", "sweep", "--quick", "--out", blocker / "out", expect="--out")
+    _fails(capsys, "eval", "sweep", "--quick", "--out", blocker, expect="is a file; expected a folder")
+    _fails(capsys, "edc", "eval", "--size", "8x8", "--out", blocker / "out", expect="cannot create the folder")
+    assert blocker.read_text() == "x"

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from edge.codes import Code
+from edge.commands._args import output_dir
 from edge.decode.settings import DecodeSettings
 from edge.eval.sweep import DECODER_NAME, SweepConfig, edge_decoder, load_rows, read_findings, run_sweep, write_report
 from edge.capture import CodedCapture
@@ -107,6 +108,7 @@ def main(argv: list[str] | None = None) -> int:
         from dataclasses import replace
 
         cfg = replace(cfg, experiments=tuple(e.strip() for e in args.experiments.split(",")))
+    output_dir(args.out)  # before the sweep: an --out that cannot be written fails now, not after it
     decoder = reference_decoder if args.decoder == "reference" else edge_decoder()
     t0 = time.perf_counter()
     rows = run_sweep(cfg, decoder)

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 
 #: Largest width or height a size option takes (pixels): beyond any camera or projector.
 MAX_SIZE = 16384
@@ -19,3 +22,31 @@ def parse_size(text: str, *, option: str = "--size", minimum: int = 1, maximum: 
     if w > maximum or h > maximum:
         raise ValueError(f"{option} must be at most {maximum}x{maximum}, got {text!r}")
     return w, h
+
+
+def output_dir(path: str | os.PathLike[str], *, option: str = "--out") -> Path:
+    """Create the output folder ``path`` (with its parents) and check it can be written, so a long
+    run fails at its start rather than when it writes its results; ValueError naming the option."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{option} {path}: is a file; expected a folder")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"{option} {path}: cannot create the folder ({exc.strerror or exc})") from None
+    if not os.access(path, os.W_OK):
+        raise ValueError(f"{option} {path}: folder is not writable")
+    return path
+
+
+def check_output_file(path: str | os.PathLike[str], *, option: str) -> None:
+    """ValueError naming the option unless ``path`` can be written as a file: not a folder, its
+    folder exists and is writable.  Nothing is created (checked before a long run)."""
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{option} {path}: is a folder; expected a file name")
+    folder = path.absolute().parent
+    if not folder.is_dir():
+        raise ValueError(f"{option} {path}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise ValueError(f"{option} {path}: not writable")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ._args import parse_size
+from ._args import output_dir, parse_size
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -60,6 +60,6 @@ def _eval(args: argparse.Namespace) -> int:
     from edge.eval.edc import run_report
 
     w, h = parse_size(args.size, minimum=8)  # its scenes need a few pixels of structure
-    run_report(args.out, width=w, height=h, seed=args.seed, command=f"edge edc eval --size {args.size}")
+    run_report(output_dir(args.out), width=w, height=h, seed=args.seed, command=f"edge edc eval --size {args.size}")
     print(f"wrote {args.out}/README.md, roc.png, loop.png")
     return 0

@@ -21,7 +21,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sub = parser.add_subparsers(dest="eval_command", metavar="EVAL_COMMAND")
     sweep = sub.add_parser("sweep", help="reproduce the paper's error-rate curves (plots + markdown)")
     sweep.add_argument("--quick", action="store_true", help="small images, one seed, 5 ratios (under a minute)")
-    sweep.add_argument("--out", type=Path, default=Path("docs/results/eval"), help="output folder")
+    sweep.add_argument("--out", type=Path, default=Path("docs/results/eval"),
+                       help="output folder, created if missing (default docs/results/eval)")
     sweep.add_argument("--experiments", default=None,
                        help="comma-separated subset of soft_quant,decode_quant,read_noise,arrangement,nary,levels,bits8")
     sweep.add_argument("--levels", choices=("auto", "calibration"), default="auto",
@@ -34,11 +35,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run_sweep_command(args: argparse.Namespace) -> int:
     from ..eval.sweep import DECODER_NAME, SweepConfig, edge_decoder, read_findings, run_sweep, write_report
+    from ._args import output_dir
 
     cfg = SweepConfig.quick() if args.quick else SweepConfig()
     cfg = replace(cfg, levels=args.levels)
     if args.experiments:
         cfg = replace(cfg, experiments=tuple(e.strip() for e in args.experiments.split(",") if e.strip()))
+    output_dir(args.out)  # before the sweep: an --out that cannot be written fails now, not after it
     decoder = edge_decoder()
     t0 = time.perf_counter()
     rows = run_sweep(cfg, decoder, progress=not args.no_progress)
