@@ -108,3 +108,14 @@ def test_eval_outputs_that_cannot_be_written_fail_before_the_work(capsys, tmp_pa
     _fails(capsys, "eval", "sweep", "--quick", "--out", blocker, expect="is a file; expected a folder")
     _fails(capsys, "edc", "eval", "--size", "8x8", "--out", blocker / "out", expect="cannot create the folder")
     assert blocker.read_text() == "x"
+
+
+def test_run_refuses_a_replay_file_the_sensor_would_not_read(capsys, tmp_path):
+    """`edge run --replay FILE` without --sensor replay ran the simulator and exited 0, as if the
+    recording had been replayed."""
+    rec = DATA / "sim-small.mcap"
+    _fails(capsys, "run", "--replay", rec, "--profile", PROFILE, "--no-zenoh", "--stacks", "1",
+           expect="add --sensor replay")
+    _fails(capsys, "run", "--sensor", "sim", "--replay", rec, "--profile", PROFILE, "--no-zenoh", "--stacks", "1",
+           "--record", tmp_path / "out.mcap", expect="the sensor is 'sim'")
+    assert not (tmp_path / "out.mcap").exists()

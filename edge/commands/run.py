@@ -340,6 +340,10 @@ def _run_service(args: argparse.Namespace, holder: dict[str, Any], received: lis
     from edge.runtime.console import ConsoleSink
 
     profile = load_run_profile(args)
+    backend = args.sensor or profile.sensor.backend
+    if args.replay and backend != "replay":  # it was ignored: the simulator ran in its place
+        raise ValueError(f"--replay {args.replay}: only the replay sensor reads it, and the sensor is "
+                         f"{backend!r}; add --sensor replay")
     if received:
         return None, None
     console = ConsoleSink(bar=args.bar, total=args.stacks, quiet=args.quiet)
