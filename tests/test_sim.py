@@ -254,3 +254,18 @@ def test_bad_input_raises_one_clear_error():
         capture(scene, np.ones((1, 5, 1024), np.uint8), CameraModel(), rng=0)
     with pytest.raises(ValueError, match="covers projector columns 0..255"):
         capture_code(scene, get_code("gray-8"), CameraModel(), rng=0)
+
+
+def test_extra_irradiance_must_be_one_frame_per_projector_frame():
+    # a (1, H, W) or (H, W) array broadcast silently over the frames on the full path and failed with
+    # numpy's broadcast error (or indexed the wrong axis) on the rows= path
+    scene = make_scene("plane", 16, 8)
+    frames = np.ones((2, 1024), np.float32)
+    cam = CameraModel(**NOISELESS)
+    good = np.full((2, 8, 16), 0.1, np.float32)
+    np.testing.assert_array_equal(capture(scene, frames, cam, rng=0, rows=np.array([1, 5]), extra_irradiance=good),
+                                  capture(scene, frames, cam, rng=0, extra_irradiance=good)[:, [1, 5]])
+    for shape in [(1, 8, 16), (8, 16), (2, 8, 1), (3, 8, 16), (2, 9, 16)]:
+        for rows in (None, np.array([1, 5])):
+            with pytest.raises(ValueError, match=r"extra_irradiance must be \(m, H, W\)"):
+                capture(scene, frames, cam, rng=0, rows=rows, extra_irradiance=np.zeros(shape, np.float32))

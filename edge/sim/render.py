@@ -136,6 +136,10 @@ def capture(scene: Scene, projector_frames: np.ndarray, camera: CameraModel, *,
     t = camera.exposure if exposure is None else exposure
     if not (np.isfinite(t) and t > 0):
         raise ValueError(f"capture: exposure must be > 0, got {t}")
+    if extra_irradiance is not None:
+        want = (int(np.shape(projector_frames)[0]), scene.height, scene.width)
+        if np.shape(extra_irradiance) != want:  # it broadcast silently, or failed on the rows path
+            raise ValueError(f"capture: extra_irradiance must be (m, H, W) = {want}, got shape {np.shape(extra_irradiance)}")
     gen = _as_rng(rng)
     albedo = scene.albedo
     if rows is None:
