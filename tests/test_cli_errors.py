@@ -119,3 +119,12 @@ def test_run_refuses_a_replay_file_the_sensor_would_not_read(capsys, tmp_path):
     _fails(capsys, "run", "--sensor", "sim", "--replay", rec, "--profile", PROFILE, "--no-zenoh", "--stacks", "1",
            "--record", tmp_path / "out.mcap", expect="the sensor is 'sim'")
     assert not (tmp_path / "out.mcap").exists()
+
+
+def test_sim_record_checks_first_stack_before_creating_the_file(capsys, tmp_path):
+    """--first-stack -1 created OUT.mcap, then failed with numpy's "expected non-negative integer";
+    the empty recording left behind blocked the next try ("already exists")."""
+    out = tmp_path / "o.mcap"
+    _fails(capsys, "sim", "record", out, "--stacks", "1", "--profile", PROFILE, "--first-stack", "-1",
+           expect="--first-stack must be >= 0, got -1")
+    assert not out.exists()

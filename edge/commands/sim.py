@@ -36,6 +36,8 @@ def record_simulation(out: str, profile, stacks: int, *, first_stack: int = 0, o
 
     if stacks < 1:
         raise ValueError(f"--stacks must be >= 1, got {stacks}")
+    if first_stack < 0:  # checked before OUT.mcap is created (the simulator fails on it half-way)
+        raise ValueError(f"--first-stack must be >= 0, got {first_stack}")
     sensor = open_sensor(profile, "sim", stacks=stacks, max_speed=True, first_stack=first_stack)
     pipeline = make_pipeline(profile) if outputs else None
     assembler = StackAssembler(sensor.schedule)
