@@ -40,6 +40,16 @@ def test_code_commands_take_their_own_defaults(capsys):
     _fails(capsys, "codes", "table", "--k", "0", expect="--k: expected a number of information bits >= 1")
 
 
+def test_code_search_options_are_named_when_wrong(capsys):
+    """--widths 5-3 searched nothing and failed with "max() arg is an empty sequence"."""
+    _fails(capsys, "codes", "edc-search", "--widths", "5-3", expect="--widths expects 'LO-HI' (LO <= HI)")
+    _fails(capsys, "codes", "edc-search", "--max-stripe", "0", expect="--max-stripe: expected")
+    _fails(capsys, "codes", "table", "--n-max", "0", expect="--n-max: expected 12..128")
+    assert main(["codes", "table", "--k", "6", "--n-max", "200"]) == 2
+    err = capsys.readouterr().err
+    assert "--n-max: expected 6..128" in err and "code table:" not in err  # refused before the progress bar
+
+
 def test_recordings_are_not_replaced_without_overwrite(capsys, tmp_path):
     rec = tmp_path / "a.mcap"
     shutil.copy(DATA / "sim-small.mcap", rec)

@@ -17,7 +17,7 @@ import argparse
 from edge.codes import get_code, names
 from edge.codes.crc import HIGH_FREQUENCY_STRIPE, edc_search, longest_runs
 from edge.codes.linear import from_generator
-from edge.codes.table import TABLE_N_MAX, table_rows
+from edge.codes.table import MAX_N_TABLE, TABLE_N_MAX, table_rows
 
 
 def _list(args: argparse.Namespace) -> int:
@@ -56,6 +56,8 @@ def _table(args: argparse.Namespace) -> int:
     if args.k is not None and args.k < 1:
         raise ValueError(f"--k: expected a number of information bits >= 1, got {args.k}")
     ks = range(args.k, args.k + 1) if args.k is not None else range(6, 13)
+    if not max(ks) <= args.n_max <= MAX_N_TABLE:  # before the progress bar starts
+        raise ValueError(f"--n-max: expected {max(ks)}..{MAX_N_TABLE} (n >= k), got {args.n_max}")
     rows = table_rows(ks, args.n_max, progress=not args.no_progress)
     print(f"{'k':>3s} {'n':>3s} {'d_min':>5s} {'griesmer':>8s} {'known':>6s} {'gap':>4s}  {'family':14s} construction")
     for r in rows:
@@ -69,14 +71,19 @@ def _parse_widths(text: str) -> list[int]:
     try:
         if "-" in text:
             lo, hi = (int(t) for t in text.split("-", 1))
+            if lo > hi:  # an empty range searched nothing and failed in max()
+                raise ValueError
             return list(range(lo, hi + 1))
         return [int(t) for t in text.split(",")]
     except ValueError:
-        raise ValueError(f"--widths expects 'LO-HI' or a comma list such as '3-6' or '5,6', got {text!r}") from None
+        raise ValueError(f"--widths expects 'LO-HI' (LO <= HI) or a comma list such as '3-6' or '5,6', "
+                         f"got {text!r}") from None
 
 
 def _edc_search(args: argparse.Namespace) -> int:
     base = get_code(args.base)
+    if args.max_stripe < 1:
+        raise ValueError(f"--max-stripe: expected a number of columns >= 1, got {args.max_stripe}")
     records = edc_search(base, _parse_widths(args.widths), max_stripe=args.max_stripe)
     print(f"base {base.name}: n={base.n}, k={base.k}, d_min={base.d_min}; high-frequency = every CRC frame's "
           f"widest stripe <= {args.max_stripe} columns")
