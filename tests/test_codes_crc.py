@@ -117,3 +117,32 @@ def test_edc_search_bad_input():
         edc_search(get_code("xor02-10"), [2, 3])
     with pytest.raises(ValueError, match="max_stripe"):
         edc_search(get_code("xor02-10"), [3], max_stripe=0)
+
+
+def test_crc_matches_an_independent_library_for_every_polynomial():
+    """crccheck (PyPI, byte-wise table CRC, init 0, no reflection, no final XOR) over leading-zero
+    padded data: every polynomial of widths 3..8, with and without the leading term."""
+    crccheck = pytest.importorskip("crccheck.crc")
+    rng = np.random.default_rng(1)
+    for width in range(3, 9):
+        for low in range(1, 1 << width, 2):
+            class Crc(crccheck.CrcBase):
+                _width, _poly, _initvalue = width, low, 0
+                _reflect_input = _reflect_output = False
+                _xor_output = 0
+            data = rng.integers(0, 2, size=(8, 15)).astype(np.uint8)
+            for poly in (low, low | (1 << width)):
+                got = crc_bits(data, poly, width)
+                for row, crc in zip(data, got):
+                    padded = np.concatenate([np.zeros(1, np.uint8), row])  # 16 bits, a leading 0 keeps the CRC
+                    assert int("".join(map(str, crc)), 2) == Crc.calc(np.packbits(padded).tobytes())
+
+
+def test_crc_bits_and_check_bad_shapes():
+    # a 1-D row raised IndexError; words no longer than the CRC failed in numpy broadcasting
+    with pytest.raises(ValueError, match=r"\(M, n_data\)"):
+        crc_bits(np.zeros(10, np.uint8), 0x15, 5)
+    for shape in [(2, 5), (2, 3), (15,)]:
+        with pytest.raises(ValueError, match="n > 5 bits"):
+            crc_passes(np.zeros(shape, np.uint8), 0x15, 5)
+    assert crc_passes(np.zeros((2, 6), np.uint8), 0x15, 5).all()

@@ -86,6 +86,8 @@ def parity_matrix(n_data: int, poly: int, width: int) -> np.ndarray:
 def crc_bits(data: np.ndarray, poly: int, width: int) -> np.ndarray:
     """CRC of binary rows: (M, n_data) uint8 -> (M, width) uint8."""
     data = np.asarray(data, dtype=np.int64)
+    if data.ndim != 2:
+        raise ValueError(f"CRC data must be (M, n_data) binary rows, got shape {data.shape}")
     return ((data @ parity_matrix(data.shape[1], poly, width)) & 1).astype(np.uint8)
 
 
@@ -93,6 +95,8 @@ def crc_passes(words: np.ndarray, poly: int, width: int) -> np.ndarray:
     """(M, n) received binary words -> (M,) bool, True where the last ``width`` bits equal the CRC
     of the others (False = error detected)."""
     words = np.asarray(words, dtype=np.uint8)
+    if words.ndim != 2 or words.shape[1] <= width:
+        raise ValueError(f"CRC-{width} check needs (M, n) words with n > {width} bits, got shape {words.shape}")
     return np.all(crc_bits(words[:, :-width], poly, width) == words[:, -width:], axis=1)
 
 
