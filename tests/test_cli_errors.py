@@ -138,3 +138,14 @@ def test_sim_record_checks_first_stack_before_creating_the_file(capsys, tmp_path
     _fails(capsys, "sim", "record", out, "--stacks", "1", "--profile", PROFILE, "--first-stack", "-1",
            expect="--first-stack must be >= 0, got -1")
     assert not out.exists()
+
+
+def test_source_codes_options_are_checked(capsys):
+    """`edge source codes`: CODES with --family (or --table with --room-family) reported one and
+    ignored the other; --lengths 4,x was int()'s message; a length outside 2..16 or --max-devices
+    below 2 printed a table without that column / with no rows and exit 0."""
+    _fails(capsys, "source", "codes", "1101", "--family", "2", "4", expect="CODES and --family: give one of")
+    _fails(capsys, "source", "codes", "--table", "--room-family", "3", "6", expect="--table and --room-family")
+    _fails(capsys, "source", "codes", "--table", "--lengths", "4,x", expect="--lengths expects a comma list")
+    _fails(capsys, "source", "codes", "--table", "--lengths", "4,99", expect="--lengths: room families have 2 <= L")
+    _fails(capsys, "source", "codes", "--table", "--lengths", "4", "--max-devices", "1", expect="--max-devices")

@@ -16,6 +16,10 @@ from ..codes.source import PAPER_CODES, correlation_report, family, source_code,
 
 
 def _codes(args: argparse.Namespace) -> int:
+    chosen = [name for name, given in (("CODES", args.codes), ("--family", args.family), ("--table", args.table),
+                                       ("--room-family", args.room_family)) if given]
+    if len(chosen) > 1:  # the report used one of them and ignored the others
+        raise ValueError(f"{' and '.join(chosen)}: give one of CODES, --family, --table and --room-family")
     if args.table or args.room_family:
         return _room_codes(args)
     if args.family:
@@ -31,7 +35,7 @@ def _codes(args: argparse.Namespace) -> int:
 
 
 def _room_codes(args: argparse.Namespace) -> int:
-    from ..codes.source_room import format_table, guarantee, margin_table, room_family
+    from ..codes.source_room import MAX_ROOM_LENGTH, format_table, guarantee, margin_table, room_family
 
     if args.room_family:
         n, length = args.room_family
@@ -44,7 +48,15 @@ def _room_codes(args: argparse.Namespace) -> int:
         print(f"guaranteed margin {g.guaranteed_margin:+.3f}; largest power ratio with a guarantee "
               f"{g.max_power_ratio:.3f}")
         return 0
-    lengths = tuple(int(v) for v in args.lengths.split(","))
+    try:
+        lengths = tuple(int(v) for v in args.lengths.split(","))
+    except ValueError:
+        raise ValueError(f"--lengths expects a comma list of code lengths such as 4,6,8, got {args.lengths!r}") from None
+    bad = [L for L in lengths if not 2 <= L <= MAX_ROOM_LENGTH]
+    if bad:  # the table left such a column out without a word
+        raise ValueError(f"--lengths: room families have 2 <= L <= {MAX_ROOM_LENGTH}, got {bad[0]}")
+    if args.max_devices < 2:
+        raise ValueError(f"--max-devices: the table starts at N = 2 devices, got {args.max_devices}")
     ns = range(2, args.max_devices + 1)
     print(f"kind={args.kind}, stream={args.stream} (exact worst case of the sum of N-1 foreign devices)")
     print(format_table(margin_table(ns, lengths, power_ratio=args.power_ratio, kind=args.kind, stream=args.stream),
