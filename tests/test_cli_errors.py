@@ -149,3 +149,32 @@ def test_source_codes_options_are_checked(capsys):
     _fails(capsys, "source", "codes", "--table", "--lengths", "4,x", expect="--lengths expects a comma list")
     _fails(capsys, "source", "codes", "--table", "--lengths", "4,99", expect="--lengths: room families have 2 <= L")
     _fails(capsys, "source", "codes", "--table", "--lengths", "4", "--max-devices", "1", expect="--max-devices")
+
+
+def test_subscribe_and_router_check_their_arguments_first(capsys, tmp_path, monkeypatch):
+    """`edge subscribe --png/--ply` found an unwritable path only after the whole subscription
+    (the depth received was lost), `--all` ignored --ply, and a malformed --connect endpoint or a
+    router port in use was zenoh's JSON5 / Rust-located text."""
+    import socket
+
+    import edge.io.zenoh
+
+    def never(*_a, **_k):
+        raise AssertionError("subscribed before the arguments were checked")
+
+    monkeypatch.setattr(edge.io.zenoh, "DepthSubscriber", never)
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    _fails(capsys, "subscribe", "--png", blocker / "d.png", expect="--png")
+    _fails(capsys, "subscribe", "--png", tmp_path / "depth", expect="expected an image file name")
+    _fails(capsys, "subscribe", "--ply", tmp_path, expect="--ply")
+    _fails(capsys, "subscribe", "--all", "--ply", tmp_path / "c.ply", expect="--ply")
+    _fails(capsys, "subscribe", "--connect", "garbage", expect="expected <protocol>/<address>")
+    _fails(capsys, "router", "--listen", "garbage", "--seconds", "1", expect="expected <protocol>/<address>")
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        line = _fails(capsys, "router", "--listen", f"tcp/127.0.0.1:{port}", "--seconds", "1",
+                      expect="already in use")
+    assert ".rs:" not in line

@@ -29,17 +29,21 @@ def register(subparsers: Any) -> None:
 
 
 def run_router(args: argparse.Namespace) -> int:
+    from types import SimpleNamespace
+
     import zenoh
 
     from edge.commands.run import stop_on_signals
     from edge.io.zenoh import open_router
+    from edge.io.zenoh_check import check_endpoints, describe_zenoh_error
 
     if args.seconds is not None and not args.seconds > 0:
         raise ValueError(f"expected --seconds > 0, got {args.seconds}")
+    check_endpoints(SimpleNamespace(listen=args.listen, connect=args.connect, mode="router"))
     try:
         router = open_router(args.listen, args.connect)
-    except zenoh.ZError as exc:
-        raise ValueError(f"could not start a router on {', '.join(args.listen)}: {exc}") from None
+    except zenoh.ZError as exc:  # zenoh's text carries Rust source locations: one plain line instead
+        raise ValueError(f"could not start a router on {', '.join(args.listen)}: {describe_zenoh_error(exc)}") from None
     stop = threading.Event()
 
     def on_event(event: Any) -> None:

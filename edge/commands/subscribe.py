@@ -25,6 +25,8 @@ import numpy as np
 
 from edge.profiles import DEFAULT_PROFILE
 
+from ._args import check_output_file
+
 
 def colorize_depth(depth_mm: np.ndarray) -> np.ndarray:
     """(H, W, 3) uint8 BGR image of a uint16 depth map: TURBO over the valid range, 0 -> black."""
@@ -47,6 +49,15 @@ def _run(args: argparse.Namespace) -> int:
         raise ValueError(f"expected --count >= 1, got {args.count}")
     if args.seconds <= 0:
         raise ValueError(f"expected --seconds > 0, got {args.seconds}")
+    # the outputs are written after the whole subscription: a path that cannot be written fails now
+    if args.png:
+        import cv2
+
+        check_output_file(args.png, option="--png")
+        if not cv2.haveImageWriter(args.png):
+            raise ValueError(f"--png {args.png}: expected an image file name such as depth.png")
+    if args.ply:
+        check_output_file(args.ply, option="--ply")
     total, latencies, last = 0, [], None
     with DepthSubscriber(args.device, connect=args.connect, prefix=args.prefix, points=bool(args.ply)) as sub:
         start = time.monotonic()
@@ -108,8 +119,8 @@ def _run_all(args: argparse.Namespace) -> int:
     from edge.io.zenoh import make_config
     from edge.io.zenoh_monitor import DeviceMonitor, format_table
 
-    if args.png or args.count is not None:
-        raise ValueError("--all lists every device; --png and --count apply to one --device")
+    if args.png or args.ply or args.count is not None:
+        raise ValueError("--all lists every device; --png, --ply and --count apply to one --device")
     if args.seconds <= 0:
         raise ValueError(f"expected --seconds > 0, got {args.seconds}")
     if not args.interval > 0:
@@ -163,6 +174,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _defaults(args: argparse.Namespace) -> argparse.Namespace:
+    from types import SimpleNamespace
+
+    from edge.io.zenoh_check import check_endpoints
+
     if not args.connect:
         args.connect = ["tcp/127.0.0.1:7451"]
+    check_endpoints(SimpleNamespace(listen=[], connect=args.connect, mode="peer"))  # zenoh's own text is JSON5
     return args
