@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
-from typing import Sequence
+from typing import Callable, Sequence
 
 from . import __version__
 
@@ -46,8 +47,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:  # `edge codes list | head`
-        import os
-
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
@@ -59,6 +58,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"edge {args.command}{' ' + action if action else ''}: error: {message}", file=sys.stderr)
         return 2
     return int(result or 0)
+
+
+def tool_main(main: Callable[[], "int | None"], path: str) -> int:
+    """Run a ``tools/*.py`` script's ``main()`` as the ``edge`` commands run: bad input and the
+    environment (`user_error`) are one ``<script>: error: ...`` line on stderr and exit code 2, Ctrl-C
+    is 130; anything else is a bug and raised.  Use: ``raise SystemExit(tool_main(main, __file__))``."""
+    try:
+        return int(main() or 0)
+    except KeyboardInterrupt:
+        return 130
+    except Exception as exc:
+        message = user_error(exc)
+        if message is None:
+            raise
+        print(f"{os.path.basename(path)}: error: {message}", file=sys.stderr)
+        return 2
 
 
 def user_error(exc: BaseException) -> str | None:

@@ -16,7 +16,6 @@ keeps up with the camera when soft decode + EDC stays under the stack period
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 
 import numpy as np
@@ -91,4 +90,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from edge.cli import tool_main
+
+    raise SystemExit(tool_main(main, __file__))

@@ -56,4 +56,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from edge.cli import tool_main
+
+    raise SystemExit(tool_main(main, __file__))

@@ -9,7 +9,7 @@ mismatch.
 
 from __future__ import annotations
 
-import sys
+import argparse
 
 import galois
 
@@ -18,7 +18,8 @@ from edge.codes.families import bch_generator_poly
 from edge.codes.nary import reed_solomon_generator_poly
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    argparse.ArgumentParser(description=__doc__.split("\n\n")[0]).parse_args(argv)  # --help; no options
     bad = 0
     for n, k in [(15, 7), (15, 5), (31, 11), (31, 16), (63, 10), (63, 16)]:
         ref = galois.BCH(n, k)
@@ -39,4 +40,6 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from edge.cli import tool_main
+
+    raise SystemExit(tool_main(main, __file__))

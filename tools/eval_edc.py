@@ -6,9 +6,9 @@ Usage: python tools/eval_edc.py [--out docs/results/edc] [--width 256 --height 1
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
+from edge.commands._args import output_dir
 from edge.eval.edc import run_report
 
 
@@ -24,10 +24,16 @@ def main(argv: list[str] | None = None) -> int:
     cmd = "python tools/eval_edc.py" + "".join(
         f" --{k} {v}" for k, v in (("width", a.width), ("height", a.height), ("seed", a.seed), ("rounds", a.rounds))
         if v != p.get_default(k))
-    run_report(a.out, width=a.width, height=a.height, seed=a.seed, rounds=a.rounds, command=cmd)
+    if a.width < 8 or a.height < 8:  # as `edge edc eval`: its scenes need a few pixels of structure
+        raise ValueError(f"--width / --height must be at least 8, got {a.width}x{a.height}")
+    if a.rounds < 1:
+        raise ValueError(f"--rounds must be >= 1, got {a.rounds}")
+    run_report(output_dir(a.out), width=a.width, height=a.height, seed=a.seed, rounds=a.rounds, command=cmd)
     print((a.out / "README.md").read_text())
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from edge.cli import tool_main
+
+    raise SystemExit(tool_main(main, __file__))

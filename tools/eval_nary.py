@@ -36,6 +36,7 @@ sys.path.insert(0, str(ROOT))
 
 from _plane_box_sphere import render, scene as pbs_scene  # noqa: E402
 from edge.codes import get_code  # noqa: E402
+from edge.commands._args import parse_size  # noqa: E402
 from edge.decode import decode  # noqa: E402
 from edge.sim import CameraModel, capture_code  # noqa: E402
 from edge.sim.metrics import truth  # noqa: E402
@@ -97,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rules", nargs="+", default=list(RULES), choices=list(RULES),
                     help="validity rules / level sources compared (default: all)")
     args = ap.parse_args(argv)
-    size = tuple(int(v) for v in args.size.split("x"))
+    size = parse_size(args.size)
     for g in args.gen:
         label, gen = GENERATORS[g]
         print(f"\n## {label}: error rate (wrong or invalid over lit pixels) / coverage / wrong share of the "
@@ -116,4 +117,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from edge.cli import tool_main
+
+    raise SystemExit(tool_main(main, __file__))

@@ -35,6 +35,7 @@ sys.path.insert(0, str(ROOT))
 
 from _plane_box_sphere import render, scene as pbs_scene  # noqa: E402
 from edge.codes import get_code  # noqa: E402
+from edge.commands._args import parse_size  # noqa: E402
 from edge.decode import decode  # noqa: E402
 from edge.eval.report import calibration_verdict  # noqa: E402
 from edge.sim import CameraModel, capture_code  # noqa: E402
@@ -194,7 +195,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="folder for README.md and reliability.png (default docs/results/posterior)")
     ap.add_argument("--real", type=Path, default=REAL, help="OpenCV Gray-code capture folder (skipped if absent)")
     args = ap.parse_args(argv)
-    size = tuple(int(v) for v in args.size.split("x"))
+    size = parse_size(args.size)
     lines: list[str] = [f"Command: `python tools/eval_posterior.py --size {args.size} --seeds "
                         f"{' '.join(map(str, args.seeds))}`", ""]
 
@@ -338,4 +339,6 @@ def _plot(curves: dict[str, dict[str, list]], path: Path) -> None:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from edge.cli import tool_main
+
+    raise SystemExit(tool_main(main, __file__))

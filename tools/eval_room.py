@@ -39,6 +39,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from edge.codes.source_room import format_table, margin_table, room_family  # noqa: E402
+from edge.commands._args import output_dir  # noqa: E402
 from edge.source.room_slots import SlotScenario, evaluate  # noqa: E402
 
 PROFILES = ROOT / "tests" / "data" / "profiles"
@@ -207,8 +208,11 @@ def main() -> int:
     ap.add_argument("--pixels", type=int, default=2000, help="pixels of the slot-level simulation")
     ap.add_argument("--quick", action="store_true", help="code tables up to L = 12 only")
     args = ap.parse_args()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    if args.max_devices < 2:  # a room of one device has no table (it failed with an IndexError)
+        raise ValueError(f"--max-devices must be >= 2, got {args.max_devices}")
+    if args.pixels < 1:
+        raise ValueError(f"--pixels must be >= 1, got {args.pixels}")
+    out = output_dir(args.out)
     t0 = time.perf_counter()
     slots = slots_table(out, args.max_devices, args.pixels)
     devices = devices_table(out, args.max_devices)
@@ -238,4 +242,6 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from edge.cli import tool_main
+
+    raise SystemExit(tool_main(main, __file__))

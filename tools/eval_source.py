@@ -23,6 +23,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from edge.codes.source import correlation_report, family, source_code  # noqa: E402
+from edge.commands._args import output_dir, parse_size  # noqa: E402
 from edge.eval.curtain import run_curtain  # noqa: E402
 from edge.eval.event_sl import run_label, scenarios  # noqa: E402
 from edge.source.curtain import CurtainConfig  # noqa: E402
@@ -110,9 +111,8 @@ def main() -> int:
                     help="output folder (default docs/results/source)")
     ap.add_argument("--size", default="320x240", help="scene size WxH (default 320x240)")
     args = ap.parse_args()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    w, h = (int(v) for v in args.size.split("x"))
+    w, h = parse_size(args.size, minimum=16)  # as `edge source event-demo` / `curtain-demo`
+    out = output_dir(args.out)
     codes_report(out)
     event_sl(out, w, h)
     curtain(out, w, h)
@@ -122,4 +122,6 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from edge.cli import tool_main
+
+    raise SystemExit(tool_main(main, __file__))

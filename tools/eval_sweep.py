@@ -121,4 +121,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from edge.cli import tool_main
+
+    raise SystemExit(tool_main(main, __file__))

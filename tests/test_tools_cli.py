@@ -1,0 +1,57 @@
+"""tools/*.py on bad input: one `<script>: error: ...` line and exit code 2 as the `edge` commands
+(`edge.cli.tool_main`), no traceback; `--help` on every script."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from edge.cli import tool_main
+
+TOOLS = Path(__file__).resolve().parents[1] / "tools"
+
+
+def _tool(*argv: str, cwd: Path) -> subprocess.CompletedProcess:
+    env = dict(os.environ, MPLBACKEND="Agg")
+    return subprocess.run([sys.executable, str(TOOLS / argv[0]), *argv[1:]], capture_output=True, text=True,
+                          cwd=cwd, env=env, timeout=300)
+
+
+@pytest.mark.parametrize("argv, expect", [
+    (("eval_nary.py", "--size", "abc"), "eval_nary.py: error: --size expects WIDTHxHEIGHT"),  # int()'s traceback
+    (("eval_posterior.py", "--size", "64", "--out", "p"), "eval_posterior.py: error: --size expects"),
+    (("eval_room.py", "--max-devices", "0", "--out", "r"), "eval_room.py: error: --max-devices must be >= 2"),  # IndexError
+    (("eval_edc.py", "--width", "4", "--height", "4", "--out", "e"), "eval_edc.py: error: --width / --height"),
+    (("eval_sweep.py", "--experiments", "bogus", "--out", "s"), "eval_sweep.py: error: unknown experiment 'bogus'"),
+    (("foxglove_layout.py", "--out", "missing/layout.json"), "foxglove_layout.py: error: No such file or directory"),
+])
+def test_bad_input_is_one_line_and_exit_2(tmp_path, argv, expect):
+    r = _tool(*argv, cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    assert "Traceback" not in r.stderr and r.stderr.strip().splitlines()[-1].startswith(expect), r.stderr
+    assert not any(tmp_path.iterdir())  # refused before any output was written
+
+
+def test_check_codes_galois_has_help(tmp_path):
+    """It ran the whole check on --help (it had no argument parser)."""
+    pytest.importorskip("galois")
+    r = _tool("check_codes_galois.py", "--help", cwd=tmp_path)
+    assert r.returncode == 0 and r.stdout.startswith("usage: check_codes_galois.py") and "BCH(" not in r.stdout
+
+
+def test_tool_main_reports_input_errors_and_raises_bugs(capsys):
+    def bad_input() -> int:
+        raise ValueError("--size expects WIDTHxHEIGHT")
+
+    def bug() -> int:
+        raise KeyError("x")
+
+    assert tool_main(bad_input, "/x/tools/eval_demo.py") == 2
+    assert capsys.readouterr().err == "eval_demo.py: error: --size expects WIDTHxHEIGHT\n"
+    assert tool_main(lambda: None, "t.py") == 0 and tool_main(lambda: 1, "t.py") == 1
+    with pytest.raises(KeyError):
+        tool_main(bug, "t.py")
