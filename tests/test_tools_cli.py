@@ -28,6 +28,10 @@ def _tool(*argv: str, cwd: Path) -> subprocess.CompletedProcess:
     (("eval_edc.py", "--width", "4", "--height", "4", "--out", "e"), "eval_edc.py: error: --width / --height"),
     (("eval_sweep.py", "--experiments", "bogus", "--out", "s"), "eval_sweep.py: error: unknown experiment 'bogus'"),
     (("foxglove_layout.py", "--out", "missing/layout.json"), "foxglove_layout.py: error: No such file or directory"),
+    (("bench_replay_fleet.py", "--files", "0"), "bench_replay_fleet.py: error: --files must be >= 1"),  # IndexError
+    (("bench_mcap_encoding.py", "--frames", "0"), "bench_mcap_encoding.py: error: --frames and --repeats"),  # IndexError
+    (("bench_outputs.py", "--repeats", "1"), "bench_outputs.py: error: expected --repeats >= 3"),  # exit 1
+    (("bench_code_search.py", "--pairs", "5y3"), "bench_code_search.py: error: argument --pairs"),  # exit 1
 ])
 def test_bad_input_is_one_line_and_exit_2(tmp_path, argv, expect):
     r = _tool(*argv, cwd=tmp_path)

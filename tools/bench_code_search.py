@@ -27,7 +27,7 @@ def _pairs(text: str) -> list[tuple[int, int]]:
     try:
         return [(int(a), int(b)) for a, b in (p.split("x") for p in text.split(","))]
     except ValueError as exc:
-        raise SystemExit(f"--pairs wants NxK[,NxK...] such as 31x10,22x10; got {text!r} ({exc})")
+        raise argparse.ArgumentTypeError(f"--pairs wants NxK[,NxK...] such as 31x10,22x10; got {text!r} ({exc})")
 
 
 def main() -> None:

@@ -91,6 +91,8 @@ def main() -> None:
     ap.add_argument("--compression", choices=["zstd", "lz4", "none"], default="zstd",
                     help="MCAP chunk compression (default zstd)")
     args = ap.parse_args()
+    if args.frames < 1 or args.repeats < 1:  # --frames 0 failed with an IndexError
+        raise ValueError(f"--frames and --repeats must be >= 1, got {args.frames} and {args.repeats}")
     compression = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}[args.compression]
     print(f"{args.frames} frames of 640x480 per run, {args.repeats} runs, compression {args.compression}, "
           f"CRCs on; medians (timing noise: shared machine)")

@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=50, help="calls per configuration (default 50)")
     args = ap.parse_args(argv)
     if args.repeats < 3:
-        raise SystemExit("bench_outputs: error: expected --repeats >= 3")
+        raise ValueError(f"expected --repeats >= 3, got {args.repeats}")
 
     from edge.profiles import apply_update, load_profile
     from edge.runtime.pipeline import DepthResult

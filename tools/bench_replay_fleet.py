@@ -34,6 +34,9 @@ def main() -> None:
     ap.add_argument("--profile", default="sim-dlp", help="profile to record with (default %(default)s)")
     ap.add_argument("--dir", default=None, help="where the recordings go / are reused (default: a temp dir)")
     args = ap.parse_args()
+    for name in ("files", "stacks", "workers", "repeats"):  # --files 0 failed with an IndexError
+        if getattr(args, name) < 1:
+            raise ValueError(f"--{name} must be >= 1, got {getattr(args, name)}")
 
     from edge.commands.sim import record_simulation
     from edge.profiles import load_profile
