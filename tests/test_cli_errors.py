@@ -178,3 +178,26 @@ def test_subscribe_and_router_check_their_arguments_first(capsys, tmp_path, monk
         line = _fails(capsys, "router", "--listen", f"tcp/127.0.0.1:{port}", "--seconds", "1",
                       expect="already in use")
     assert ".rs:" not in line
+
+
+def test_replay_report_never_replaces_a_recording(capsys, tmp_path, monkeypatch):
+    """`edge replay a.mcap --report a.mcap` (or --report naming another recording) replaced the
+    recording with the JSON report; a --report that is a folder failed only after every replay."""
+    import edge.io.replay_many
+
+    recs = tmp_path / "recs"
+    recs.mkdir()
+    for name in ("a.mcap", "b.mcap"):
+        shutil.copy(DATA / "sim-small.mcap", recs / name)
+    before = (DATA / "sim-small.mcap").read_bytes()
+    _fails(capsys, "replay", recs / "a.mcap", "--report", recs / "a.mcap", expect="is a recording")
+    _fails(capsys, "replay", recs, "--report", recs / "b.mcap", expect="is a recording")
+    (tmp_path / "link.json").symlink_to(recs / "b.mcap")
+    _fails(capsys, "replay", recs / "a.mcap", "--report", tmp_path / "link.json", expect="is a recording")
+    assert all((recs / n).read_bytes() == before for n in ("a.mcap", "b.mcap"))
+
+    def never(*_a, **_k):
+        raise AssertionError("replayed before --report was checked")
+
+    monkeypatch.setattr(edge.io.replay_many, "replay_serial", never)
+    _fails(capsys, "replay", recs, "--report", tmp_path, expect="--report")

@@ -15,6 +15,8 @@ import os
 import sys
 import time
 
+from ._args import check_output_file
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("more", nargs="*", metavar="FILE",
@@ -37,6 +39,7 @@ def is_many(args: argparse.Namespace) -> bool:
 
 
 def replay_many(args: argparse.Namespace) -> int:
+    from edge.io.mcap_reader import MCAP_MAGIC
     from edge.io.replay_many import find_recordings, replay_serial, report_dict, summary_lines
 
     for flag, value in (("--recover", args.recover), ("--publish", args.publish), ("--out", args.out),
@@ -46,14 +49,19 @@ def replay_many(args: argparse.Namespace) -> int:
                              "a directory, a pattern, --workers, --address or --report")
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"expected --workers >= 1, got {args.workers}")
-    if args.report and not os.path.isdir(os.path.dirname(os.path.abspath(args.report))):
-        raise ValueError(f"--report {args.report!r}: directory {os.path.dirname(args.report)!r} does not exist")
+    if args.report:
+        check_output_file(args.report, option="--report")  # before the replays, not after them
     use_ray = args.address is not None or (args.workers or 1) > 1
     if use_ray:
         from edge.io.fleet import require_ray
 
         require_ray("--workers > 1" if args.address is None else "--address")  # before any work
     paths = find_recordings([args.file, *args.more])
+    if args.report and os.path.exists(args.report):  # the JSON replaced a recording (even one replayed here)
+        with open(args.report, "rb") as f:
+            recording = f.read(len(MCAP_MAGIC)) == MCAP_MAGIC
+        if recording or any(os.path.samefile(args.report, p) for p in paths):
+            raise ValueError(f"--report {args.report}: is a recording; write the report to a .json file")
     expected = None
     if args.profile:
         from edge.profiles import load_profile
