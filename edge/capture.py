@@ -42,9 +42,12 @@ def full_scale(dtype: np.dtype | type, bit_depth: int | None = None) -> float:
 
     uint8: 255 (bit_depth, if given, must be 8 or less: 2**bit_depth - 1); uint16:
     2**bit_depth - 1 (bit_depth 1..16, default 16); float32 / float64: 1.0 (already normalised;
-    bit_depth ignored).  Any other dtype raises ValueError naming it.
+    bit_depth ignored).  Either byte order.  Any other dtype, or a bit_depth that is not an
+    integer, raises ValueError naming it.
     """
-    dt = np.dtype(dtype)
+    if bit_depth is not None and (isinstance(bit_depth, bool) or not isinstance(bit_depth, (int, np.integer))):
+        raise ValueError(f"bit_depth: expected an integer number of bits or None, got {bit_depth!r}")
+    dt = np.dtype(dtype).newbyteorder("=")
     if dt.kind == "f":
         return 1.0
     if dt == np.uint8 or dt == np.uint16:
@@ -53,12 +56,12 @@ def full_scale(dtype: np.dtype | type, bit_depth: int | None = None) -> float:
         if not 1 <= bits <= width:
             raise ValueError(f"bit_depth: expected 1..{width} for {dt} frames, got {bit_depth}")
         return float((1 << bits) - 1)
-    raise ValueError(f"frames: expected dtype uint8, uint16, float32 or float64, got {dt}")
+    raise ValueError(f"frames: expected dtype uint8, uint16, float32 or float64, got {np.dtype(dtype)}")
 
 
 def dtype_for_bits(bits: int) -> type:
     """Sample dtype of a sensor with ``bits`` ADC bits: uint8 for 8 (or fewer), uint16 up to 16."""
-    if not 1 <= int(bits) <= 16:
+    if isinstance(bits, bool) or not isinstance(bits, (int, np.integer)) or not 1 <= int(bits) <= 16:
         raise ValueError(f"bits: expected 1..16 ADC bits, got {bits}")
     return np.uint8 if int(bits) <= 8 else np.uint16
 

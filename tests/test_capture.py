@@ -74,7 +74,12 @@ def test_coded_capture_fields_and_validation():
             validate(f, w, b, code, bit_depth=bad)
     with pytest.raises(ValueError, match="normalised to"):
         validate(f.astype(np.float32), w.astype(np.float32), b.astype(np.float32), code)
-    assert validate(f.astype(np.uint8), w.astype(np.uint8) // 20, b.astype(np.uint8), code, bit_depth=12).scale == 1 / 255
+    # uint8 follows the same rule (full_scale): bit_depth 1..8 holding every value, 8 where not given
+    f8, w8, b8 = f.astype(np.uint8), w.astype(np.uint8) // 20, b.astype(np.uint8)
+    assert validate(f8, w8, b8, code).scale == validate(f8, w8, b8, code, bit_depth=8).scale == 1 / 255
+    assert validate(f8, w8, b8, code, bit_depth=4).scale == 1 / 15
+    with pytest.raises(ValueError, match="bit_depth: expected 1..8 for uint8 frames, got 12"):
+        validate(f8, w8, b8, code, bit_depth=12)
 
 
 def test_uint16_bit_depth_decodes_like_float():

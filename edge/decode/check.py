@@ -19,7 +19,7 @@ import numpy as np
 from ..capture import CodedCapture, full_scale
 from ..codes import Code
 from ..codes.words import columns_of_words, pack_words
-from .inputs import validate
+from .inputs import codebook_rows, validate
 
 
 def _work_dtype(*arrays: np.ndarray) -> type:
@@ -83,7 +83,7 @@ def check(
     in any scale: the decisions are midpoint thresholds).
     """
     st = validate(frames, white, black, code, inverse=inverse, scale_free=True)  # hard decisions
-    ncols = code.size if columns is None else int(columns)
+    ncols = codebook_rows(code, columns)
     if code.q == 2:
         col = columns_of_words(hard_words(st.frames, st.white, st.black, st.inverse), code)
         return ~((col >= 0) & (col < ncols))

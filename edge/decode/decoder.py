@@ -148,7 +148,7 @@ def decode(
     searches again (about twice the time; not with inverse frames).  See the module docstring for
     methods, metrics and the valid mask.
     """
-    s = (DEFAULT_SETTINGS if settings is None else settings).replace(**options)
+    s = _settings(settings, options)
     if s.backend != "cpu":  # device backends (edge.decode.backends.cuda) run levels, search, validity rule whole
         whole = getattr(get_backend(s.backend), "decode_whole", None)
         if whole is not None:
@@ -170,12 +170,21 @@ def decode_refined(frames: np.ndarray, white: np.ndarray, black: np.ndarray, cod
     uses the settings' method.  ``validity="auto"`` means the "confidence" rule here.  Other
     arguments as for `decode`.
     """
-    s = (DEFAULT_SETTINGS if settings is None else settings).replace(**options).replace(levels="refit")
+    s = _settings(settings, options).replace(levels="refit")
     if s.validity == "auto":  # the refinement study's rule (the "error" rule refits per candidate itself)
         s = s.replace(validity="confidence")
     return _decode(frames, white, black, code, s, inverse=inverse, min_disparity=min_disparity,
                    max_disparity=max_disparity, columns=columns, stripe=stripe, bit_depth=bit_depth,
                    iterations=iterations)
+
+
+def _settings(settings: DecodeSettings | None, options: dict[str, Any]) -> DecodeSettings:
+    """`settings` (default `DEFAULT_SETTINGS`) with ``options`` applied; one TypeError where
+    `settings` is not a `DecodeSettings` (a dict of options goes in as keywords)."""
+    if settings is not None and not isinstance(settings, DecodeSettings):
+        raise TypeError(f"settings: expected a DecodeSettings or None (options as keywords: "
+                        f"decode(..., method='list')), got {type(settings).__name__}")
+    return (DEFAULT_SETTINGS if settings is None else settings).replace(**options)
 
 
 def _decode(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code, s: DecodeSettings, *,

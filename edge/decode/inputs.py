@@ -2,9 +2,10 @@
 
 Every check raises one `ValueError` naming what was expected and what was given (a capture in
 which no pixel sees the projector raises its subclass `NoPatternContrast`). Arrays are
-never copied here (the kernels read uint8 / uint16 / float32 / float64 directly); the only
-product is a `edge.capture.CodedCapture` whose ``scale`` (`edge.capture.full_scale`) maps raw
-values to the normalised range [0, 1].
+not copied here (the kernels read uint8 / uint16 / float32 / float64 directly) except to make
+them C-contiguous and of the machine's byte order (`native`: a big-endian ``>u2`` capture decodes
+as its values); the only product is a `edge.capture.CodedCapture` whose ``scale``
+(`edge.capture.full_scale`) maps raw values to the normalised range [0, 1].
 """
 
 from __future__ import annotations
@@ -29,6 +30,30 @@ class NoPatternContrast(ValueError):
 
     def __init__(self, message: str = NO_CONTRAST) -> None:
         super().__init__(message)
+
+
+def check_code(code: Code) -> Code:
+    """`code` where it is a `edge.codes.Code`; one TypeError otherwise (a code's name is not one)."""
+    if not isinstance(code, Code):
+        raise TypeError(f"code: expected an edge.codes.Code (e.g. edge.codes.get_code('ecc-22-10')), "
+                        f"got {type(code).__name__} {code!r}"[:300])
+    return code
+
+
+def codebook_rows(code: Code, columns: int | None) -> int:
+    """The codebook rows in use (projector width / stripe): ``columns``, an integer 1..code.size,
+    or all of `code` for None; one ValueError otherwise."""
+    if columns is None:
+        return int(code.size)
+    if isinstance(columns, bool) or not isinstance(columns, (int, np.integer)) or not 1 <= columns <= code.size:
+        raise ValueError(f"columns: expected an integer 1..{code.size} for code {code.name!r}, got {columns!r}")
+    return int(columns)
+
+
+def native(a: np.ndarray) -> np.ndarray:
+    """`a` in the machine's byte order (the same values; ``a`` itself where it is already): the
+    kernels read native arrays, and numpy's dtype checks tell ``>u2`` from uint16."""
+    return a if a.dtype.isnative else a.astype(a.dtype.newbyteorder("="))
 
 
 _INT_DTYPES = (np.uint8, np.uint16)
@@ -57,18 +82,20 @@ def _check_normalised(name: str, a: np.ndarray) -> None:
 DETECTED_DEPTHS = (8, 10, 12, 14, 16)
 
 
-def _bit_depth(arrays: list[tuple[str, np.ndarray]], bit_depth: int | None) -> int | None:
-    """The bit depth of uint16 data (None for other dtypes): ``bit_depth`` where given (1..16, an
-    integer; a value above its full scale raises), else the smallest of `DETECTED_DEPTHS` whose
-    full scale holds the largest value."""
-    if arrays[0][1].dtype != np.uint16:
+def bit_depth_of(arrays: list[tuple[str, np.ndarray]], bit_depth: int | None) -> int | None:
+    """The bit depth of integer samples (None for floats, which are normalised, and for uint8
+    without ``bit_depth``: 8 bits).  ``arrays``: (name, array) pairs of one dtype.  ``bit_depth``
+    where given: an integer that holds every value, 1..8 for uint8 and 1..16 for uint16
+    (`edge.capture.full_scale`); else, for uint16, the smallest of `DETECTED_DEPTHS` whose full
+    scale holds the largest value.  One ValueError naming the problem otherwise."""
+    dtype = arrays[0][1].dtype
+    if bit_depth is not None:
+        full_scale(dtype, bit_depth)  # raises for a non-integer, outside 1..8 (uint8) / 1..16 (uint16)
+    if dtype.kind == "f" or (dtype == np.uint8 and bit_depth is None):
         return None
     top = max(int(a.max()) if a.size else 0 for _, a in arrays)
     if bit_depth is None:
         return next(b for b in DETECTED_DEPTHS if top <= (1 << b) - 1)
-    if isinstance(bit_depth, bool) or not isinstance(bit_depth, (int, np.integer)):
-        raise ValueError(f"bit_depth: expected an integer number of bits, got {bit_depth!r}")
-    full_scale(np.uint16, int(bit_depth))  # raises outside 1..16
     if top > (1 << int(bit_depth)) - 1:
         name = next(n for n, a in arrays if a.size and int(a.max()) == top)
         raise ValueError(f"{name}: values up to {top} exceed the full scale {(1 << int(bit_depth)) - 1} of "
@@ -89,16 +116,18 @@ def validate(
     """Check shapes, dtypes and values of a capture for `code`; return a `CodedCapture`.
 
     frames (n, H, W) with n == code.n; white, black (H, W); inverse (n, H, W) or None. All arrays
-    must share one dtype (uint8, uint16, float32 or float64). bit_depth: significant bits of
-    uint16 data, an integer 1..16 that holds every value (None: detected, the smallest of
-    `DETECTED_DEPTHS` that holds the largest value, so that 12-bit data in uint16 is read as 12-bit
-    and a contrast threshold means the same with and without it); ignored for uint8 (8) and floats
-    (which must be normalised to [0, 1], unless ``scale_free``: for callers whose result does not
-    depend on the intensity scale, the hard decisions of `edge.decode.check`).
+    must share one dtype (uint8, uint16, float32 or float64; either byte order). bit_depth:
+    significant bits of integer data, an integer that holds every value, 1..16 for uint16 (None:
+    detected, the smallest of `DETECTED_DEPTHS` that holds the largest value, so that 12-bit data
+    in uint16 is read as 12-bit and a contrast threshold means the same with and without it) and
+    1..8 for uint8 (None: 8); ignored for floats (which must be normalised to [0, 1], unless
+    ``scale_free``: for callers whose result does not depend on the intensity scale, the hard
+    decisions of `edge.decode.check`).  `bit_depth_of` is the rule.
     """
-    frames = np.asarray(frames)
-    white = np.asarray(white)
-    black = np.asarray(black)
+    check_code(code)
+    frames = native(np.asarray(frames))
+    white = native(np.asarray(white))
+    black = native(np.asarray(black))
     if frames.ndim != 3:
         raise ValueError(f"frames: expected a (n, H, W) stack, got shape {frames.shape}")
     if frames.shape[0] != code.n:
@@ -110,7 +139,7 @@ def validate(
         if a.shape != (h, w):
             raise ValueError(f"{name}: expected shape {(h, w)} to match frames, got {a.shape}")
     if inverse is not None:
-        inverse = np.asarray(inverse)
+        inverse = native(np.asarray(inverse))
         if inverse.shape != frames.shape:
             raise ValueError(f"inverse: expected shape {frames.shape} to match frames, got {inverse.shape}")
     arrays = [("frames", frames), ("white", white), ("black", black)]
@@ -128,8 +157,7 @@ def validate(
         raise ValueError(f"frames: expected a non-empty image, got shape {frames.shape}")
     if not np.greater(white, black).any():  # one dtype (checked above): compared as is
         raise NoPatternContrast()
-    # bit_depth counts for uint16 only (uint8 is 8 bits, floats are normalised): one full-scale rule
-    depth = _bit_depth(arrays, bit_depth)
+    depth = bit_depth_of(arrays, bit_depth)  # one full-scale rule (floats are normalised)
     # Kernels index frames[i, y, x]; contiguous layout keeps that cheap.
     frames = np.ascontiguousarray(frames)
     white = np.ascontiguousarray(white)

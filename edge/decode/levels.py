@@ -100,8 +100,8 @@ def estimate_levels(stack: CodedCapture, code: Code, levels: str, top1: Callable
     if stack.inverse is not None:
         raise ValueError("levels: 'refit' expects no inverse frames (pattern + inverse decisions "
                          "do not use the calibration levels), got inverse=")
-    if iterations < 0:
-        raise ValueError(f"iterations: expected >= 0, got {iterations}")
+    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 0:
+        raise ValueError(f"iterations: expected an integer >= 0, got {iterations!r}")
     s = np.float32(stack.scale)
     f = stack.frames.astype(np.float32) * s
     w, b = initial_levels(f, stack.white.astype(np.float32) * s, stack.black.astype(np.float32) * s)

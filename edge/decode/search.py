@@ -26,6 +26,7 @@ import numpy as np
 from ..codes import Code
 from .backends import get as get_backend
 from ..capture import CodedCapture
+from .inputs import check_code, codebook_rows
 from .kernels import METRIC_ML, METRIC_NORMALIZED
 from .settings import METRIC_NAMES, DecodeSettings
 
@@ -46,17 +47,16 @@ class Candidates:
 
 def check_call(code: Code, settings: DecodeSettings, *, inverse: np.ndarray | None, columns: int | None,
                stripe: int) -> int:
-    """The capture facts `decode` checks for every backend (one ValueError each); returns the
-    codebook rows in use (``columns``, default all of ``code``)."""
+    """The capture facts `decode` checks for every backend (one ValueError each; a TypeError for
+    a `code` that is not a `edge.codes.Code`); returns the codebook rows in use (``columns``, an
+    integer, default all of ``code``: `inputs.codebook_rows`)."""
+    check_code(code)
     if settings.levels == "refit" and inverse is not None:
         raise ValueError("levels: 'refit' expects no inverse frames (pattern + inverse decisions "
                          "do not use the calibration levels), got inverse=")
-    if stripe < 1:
-        raise ValueError(f"stripe: expected >= 1, got {stripe}")
-    ncols = code.size if columns is None else int(columns)
-    if not 1 <= ncols <= code.size:
-        raise ValueError(f"columns: expected 1..{code.size} for code {code.name!r}, got {columns}")
-    return ncols
+    if isinstance(stripe, bool) or not isinstance(stripe, (int, np.integer)) or stripe < 1:
+        raise ValueError(f"stripe: expected an integer >= 1 (projector columns per code cell), got {stripe!r}")
+    return codebook_rows(code, columns)
 
 
 def band_args(min_disparity: float | None, max_disparity: float | None) -> tuple[bool, int, int]:

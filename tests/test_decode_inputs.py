@@ -1,0 +1,140 @@
+"""Decoder inputs as a library user hands them over: byte order, bit depth of every dtype, the
+capture facts (columns, stripe), the code and settings objects."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from edge.capture import CodedCapture, full_scale
+from edge.codes import get_code
+from edge.decode import DecodeSettings, check, contrast_error_map, decode, decode_capture, decode_refined
+from edge.decode.backends import cpu as cpu_backend
+from edge.decode.inputs import validate
+from edge.decode.kernels import LANES, METRIC_ML
+from edge.decode.synthetic import make_capture
+
+FIELDS = ("column", "confidence", "valid", "candidates", "distances", "error")
+
+
+def _capture(name: str, *, dtype=np.uint16, bit_depth: int | None = 12, inverse: bool = False, h: int = 5,
+             w: int = LANES + 9, seed: int = 3) -> CodedCapture:
+    code = get_code(name)
+    rng = np.random.default_rng(seed)
+    cols = np.clip(np.arange(w)[None, :] + 40 + rng.integers(0, 3, (h, w)), 0, code.size - 1)
+    return make_capture(code, cols, rng=rng, albedo=rng.uniform(0.05, 0.5, (h, w)), sigma_s=0.06, dtype=dtype,
+                        bit_depth=bit_depth, inverse=inverse)
+
+
+def _swapped(a: np.ndarray | None) -> np.ndarray | None:
+    """The same values in the other byte order (big-endian on the usual machines)."""
+    return None if a is None else a.astype(a.dtype.newbyteorder("S"))
+
+
+def _same(a, b) -> None:
+    for f in FIELDS:
+        x, y = getattr(a, f), getattr(b, f)
+        assert (x is None and y is None) or np.array_equal(x, y, equal_nan=True), f
+
+
+@pytest.mark.parametrize("dtype", [np.uint16, np.float32, np.float64])
+def test_other_byte_order_decodes_like_native(dtype):
+    """A big-endian capture (``>u2`` from a file or a camera SDK) decodes to the same arrays as
+    its native copy on every search path and rule; it was refused as "expected dtype uint16,
+    got >u2"."""
+    cap = _capture("ecc-22-10", dtype=dtype, bit_depth=12 if dtype == np.uint16 else None)
+    code = cap.code
+    fr, wh, bl = _swapped(cap.frames), _swapped(cap.white), _swapped(cap.black)
+    assert not fr.dtype.isnative and np.array_equal(fr, cap.frames)
+    for kw in ({}, {"validity": "confidence"}, {"min_disparity": -60, "max_disparity": -30}, {"method": "hard"},
+               {"method": "sgm"}):
+        _same(decode(fr, wh, bl, code, **kw), decode(cap.frames, cap.white, cap.black, code, **kw))
+    # every exact search path on the validated stacks
+    st, native = validate(fr, wh, bl, code), validate(cap.frames, cap.white, cap.black, code)
+    assert st.frames.dtype == native.frames.dtype and st.scale == native.scale
+    for path, band in (("scalar", (False, 0, 0)), ("lanes", (False, 0, 0)), ("band", (True, -60, -30)),
+                       ("band-scan", (True, -60, -30))):
+        kw = dict(metric=METRIC_ML, sigma_r=0.01, sigma_s=0.03, columns=code.size, band=band, stripe=1, path=path)
+        for a, b in zip(cpu_backend.search(st, code, **kw)[:3], cpu_backend.search(native, code, **kw)[:3]):
+            np.testing.assert_array_equal(a, b, err_msg=path)
+    assert np.array_equal(check(fr, wh, bl, code), check(cap.frames, cap.white, cap.black, code))
+    assert np.array_equal(contrast_error_map(wh, bl, 0.05), contrast_error_map(cap.white, cap.black, 0.05))
+    assert full_scale(np.dtype(">u2"), 12) == full_scale(np.uint16, 12) == 4095.0
+
+
+def test_other_byte_order_inverse_frames():
+    cap = _capture("gray-10", inverse=True)
+    args = (cap.frames, cap.white, cap.black, cap.code)
+    _same(decode(*args, inverse=_swapped(cap.inverse)), decode(*args, inverse=cap.inverse))
+
+
+def test_bit_depth_is_one_rule_for_every_dtype():
+    """bit_depth follows `edge.capture.full_scale` for uint8 as for uint16 (it was ignored for
+    uint8 frames: bit_depth=12 on uint8, e.g. 12-bit data cast to uint8, decoded silently, and a
+    CodedCapture that full_scale refuses decoded); a bit_depth that is not an integer is one
+    error for any dtype (it was ignored for uint8 and floats)."""
+    cap = _capture("ecc-22-10", dtype=np.uint8, bit_depth=None)
+    args = (cap.frames, cap.white, cap.black, cap.code)
+    _same(decode(*args, bit_depth=8), decode(*args))
+    with pytest.raises(ValueError, match="bit_depth: expected 1..8 for uint8 frames, got 12"):
+        decode(*args, bit_depth=12)
+    with pytest.raises(ValueError, match="exceed the full scale 63 of bit_depth=6"):
+        decode(*args, bit_depth=6)
+    as_capture = CodedCapture(cap.frames, cap.white, cap.black, code=cap.code, bit_depth=12)
+    with pytest.raises(ValueError, match="bit_depth: expected 1..8 for uint8 frames, got 12"):
+        decode_capture(as_capture)
+    with pytest.raises(ValueError, match="bit_depth: expected 1..8"):
+        as_capture.full_scale
+    # 6-bit samples in uint8 decode as the same samples in uint16 at bit_depth=6
+    six = (cap.frames // 4, cap.white // 4, cap.black // 4)
+    _same(decode(*six, cap.code, bit_depth=6, validity="confidence"),
+          decode(*(a.astype(np.uint16) for a in six), cap.code, bit_depth=6, validity="confidence"))
+    fl = tuple(a.astype(np.float32) / 255 for a in args[:3])
+    for bad in ("12", 12.0, True):
+        for arrays in (args[:3], fl):
+            with pytest.raises(ValueError, match="bit_depth: expected an integer number of bits"):
+                decode(*arrays, cap.code, bit_depth=bad)
+        with pytest.raises(ValueError, match="bit_depth: expected an integer"):
+            full_scale(np.uint16, bad)
+
+
+@pytest.mark.parametrize("name,value", [("columns", 2.5), ("columns", "700"), ("columns", True), ("stripe", 1.5),
+                                        ("stripe", "2"), ("stripe", None), ("stripe", np.float64(2.0))])
+def test_columns_and_stripe_are_integers(name, value):
+    """columns=2.5 decoded silently with 2 rows, stripe=1.5 with stripe 1 in the search but 1.5
+    in the error rule's choices, and stripe="2" / None failed in a comparison (TypeError
+    '<' not supported); each is now one ValueError naming the argument."""
+    cap = _capture("ecc-22-10")
+    args = (cap.frames, cap.white, cap.black, cap.code)
+    with pytest.raises(ValueError, match=f"{name}: expected an integer"):
+        decode(*args, **{name: value})
+    if name == "columns":
+        with pytest.raises(ValueError, match="columns: expected an integer"):
+            check(*args, columns=value)
+    ok = {"columns": np.int64(700), "stripe": np.int32(2)}[name]
+    assert decode(*args, **{name: ok}).column.shape == cap.shape
+
+
+def test_code_and_settings_objects_are_checked():
+    """A code's name or a dict of options where a Code / DecodeSettings goes raised
+    AttributeError from inside the decoder ('str' object has no attribute 'size')."""
+    cap = _capture("ecc-22-10")
+    args = (cap.frames, cap.white, cap.black)
+    with pytest.raises(TypeError, match="code: expected an edge.codes.Code"):
+        decode(*args, "ecc-22-10")
+    with pytest.raises(TypeError, match="code: expected an edge.codes.Code"):
+        check(*args, "ecc-22-10")
+    with pytest.raises(TypeError, match="settings: expected a DecodeSettings or None"):
+        decode(*args, cap.code, settings={"method": "list"})
+    assert decode(*args, cap.code, settings=DecodeSettings(method="list")).column.shape == cap.shape
+
+
+def test_refit_iterations_are_an_integer():
+    """decode_refined(iterations=1.5) failed in range() with a TypeError."""
+    cap = _capture("ecc-22-10")
+    args = (cap.frames, cap.white, cap.black, cap.code)
+    for bad in (1.5, "2", True):
+        with pytest.raises(ValueError, match="iterations: expected an integer >= 0"):
+            decode_refined(*args, iterations=bad)
+    assert decode_refined(*args, iterations=np.int64(2)).column.shape == cap.shape
+
