@@ -166,14 +166,56 @@ def test_latest_queue_drops_oldest_and_never_blocks():
         LatestQueue(0)
 
 
+def _queue_with_wait_signal(capacity: int):
+    """A LatestQueue whose condition sets the returned Event when a getter starts waiting."""
+    waiting = threading.Event()
+
+    class Watched(threading.Condition):
+        def wait(self, timeout=None):
+            waiting.set()
+            return super().wait(timeout)
+
+    q: LatestQueue[int] = LatestQueue(capacity)
+    q._cond = Watched()
+    return q, waiting
+
+
 def test_latest_queue_wakes_waiting_getter():
-    q: LatestQueue[int] = LatestQueue(1)
+    """A getter already blocked in get() returns as soon as an item is put, long before its
+    timeout (without the wait signal the put could come first, and an unwoken getter still
+    returned the item at its timeout: the test could not tell)."""
+    import time
+
+    q, waiting = _queue_with_wait_signal(1)
     got = []
-    t = threading.Thread(target=lambda: got.append(q.get(5)))
+    t = threading.Thread(target=lambda: got.append((q.get(60), time.monotonic())), daemon=True)
     t.start()
+    assert waiting.wait(10), "the getter never waited"
+    put_at = time.monotonic()
     q.put(7)
-    t.join(5)
-    assert got == [7]
+    t.join(30)
+    assert not t.is_alive() and len(got) == 1
+    item, returned_at = got[0]
+    assert item == 7 and returned_at - put_at < 10  # woken by put, not by the 60 s timeout
+
+
+def test_latest_queue_close_wakes_waiting_getter():
+    """close() wakes a blocked getter, which raises Closed (the service's decode thread exits)."""
+    q, waiting = _queue_with_wait_signal(1)
+    raised = []
+
+    def get():
+        try:
+            q.get(60)
+        except Closed:
+            raised.append(True)
+
+    t = threading.Thread(target=get, daemon=True)
+    t.start()
+    assert waiting.wait(10), "the getter never waited"
+    q.close()
+    t.join(30)
+    assert not t.is_alive() and raised == [True]
 
 
 class G:
