@@ -1,5 +1,5 @@
 """Decoder inputs as a library user hands them over: byte order, bit depth of every dtype, the
-capture facts (columns, stripe), the code and settings objects."""
+capture facts (columns, stripe), the code and settings objects, and the EDC maps of uint16 data."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 
 from edge.capture import CodedCapture, full_scale
 from edge.codes import get_code
-from edge.decode import DecodeSettings, check, contrast_error_map, decode, decode_capture, decode_refined
+from edge.decode import DecodeSettings, check, contrast_error_map, decode, decode_capture, decode_refined, error_map
 from edge.decode.backends import cpu as cpu_backend
 from edge.decode.inputs import validate
 from edge.decode.kernels import LANES, METRIC_ML
@@ -138,3 +138,26 @@ def test_refit_iterations_are_an_integer():
             decode_refined(*args, iterations=bad)
     assert decode_refined(*args, iterations=np.int64(2)).column.shape == cap.shape
 
+
+def test_edc_maps_read_uint16_at_the_detected_bit_depth():
+    """error_map / contrast_error_map of 12-bit data in uint16 without bit_depth read it at
+    16 bits (a 0.04 threshold became 2621 counts) and flagged every pixel; they now read it at
+    the bit depth decode reads it at, so the maps equal those with bit_depth=12 and of the
+    normalised floats."""
+    cap = _capture("ecc-22-10", h=8, w=40)
+    args = (cap.frames, cap.white, cap.black, cap.code)
+    stated = error_map(*args, bit_depth=12)
+    assert 0 < stated.mean() < 0.5
+    assert np.array_equal(error_map(*args), stated)
+    fl = tuple(a.astype(np.float64) / 4095 for a in args[:3])
+    assert np.array_equal(error_map(*fl, cap.code), stated)
+    assert np.array_equal(contrast_error_map(cap.white, cap.black, 0.04),
+                          contrast_error_map(cap.white, cap.black, 0.04, bit_depth=12))
+    assert np.array_equal(contrast_error_map(cap.white, cap.black, 0.04),
+                          contrast_error_map(fl[1], fl[2], 0.04))
+    with pytest.raises(ValueError, match="white: values up to .* exceed the full scale 255 of bit_depth=8"):
+        contrast_error_map(cap.white, cap.black, 0.04, bit_depth=8)
+    with pytest.raises(ValueError, match="white: expected dtype uint8, uint16"):
+        contrast_error_map(cap.white.astype(np.int32), cap.black.astype(np.int32), 0.04)
+    with pytest.raises(ValueError, match="normalised to"):
+        contrast_error_map(cap.white.astype(np.float32), cap.black.astype(np.float32), 0.04)

@@ -19,7 +19,7 @@ import numpy as np
 from ..capture import CodedCapture, full_scale
 from ..codes import Code
 from ..codes.words import columns_of_words, pack_words
-from .inputs import codebook_rows, validate
+from .inputs import bit_depth_of, check_samples, codebook_rows, native, validate
 
 
 def _work_dtype(*arrays: np.ndarray) -> type:
@@ -121,16 +121,20 @@ def contrast_error_map(white: np.ndarray, black: np.ndarray, threshold: float, *
                        bit_depth: int | None = None) -> np.ndarray:
     """(H, W) bool: True where white - black is below `threshold`.
 
-    threshold is in normalised intensity (fraction of `edge.capture.full_scale`: 255 for uint8,
-    2**bit_depth - 1 for uint16, default 65535, 1 for floats), e.g. 40/255 reproduces OpenCV's
-    default black threshold.
+    white, black: (H, W) calibration frames of one dtype, as for `decode` (uint8, uint16, or
+    floats normalised to [0, 1]).  threshold is in normalised intensity: a fraction of the full
+    scale `decode` reads them at (`edge.capture.full_scale` at `edge.decode.inputs.bit_depth_of`:
+    255 for uint8, 2**bit_depth - 1 for uint16, where bit_depth None is detected as the smallest
+    of 8, 10, 12, 14, 16 bits holding the largest value, so 12-bit data in uint16 is read at 4095;
+    1 for floats), e.g. 40/255 reproduces OpenCV's default black threshold.
     """
-    white = np.asarray(white)
-    black = np.asarray(black)
+    white = native(np.asarray(white))
+    black = native(np.asarray(black))
     if white.shape != black.shape:
         raise ValueError(f"white/black: expected equal shapes, got {white.shape} and {black.shape}")
-    depth = bit_depth if white.dtype == np.uint16 else None
-    scale = 1.0 / full_scale(white.dtype, depth)
+    arrays = [("white", white), ("black", black)]
+    check_samples(arrays)
+    scale = 1.0 / full_scale(white.dtype, bit_depth_of(arrays, bit_depth))
     return (white.astype(np.float64) - black.astype(np.float64)) * scale < threshold
 
 
@@ -145,7 +149,9 @@ def error_map(
     columns: int | None = None,
     bit_depth: int | None = None,
 ) -> np.ndarray:
-    """(H, W) bool: `check` OR `contrast_error_map` (a pixel to re-project or discard)."""
-    return check(frames, white, black, code, inverse=inverse, columns=columns) | contrast_error_map(
-        white, black, contrast_threshold, bit_depth=bit_depth
+    """(H, W) bool: `check` OR `contrast_error_map` (a pixel to re-project or discard); the
+    arrays as for `decode` (the contrast at the bit depth `decode` reads the capture at)."""
+    st = validate(frames, white, black, code, inverse=inverse, bit_depth=bit_depth)
+    return check(st.frames, st.white, st.black, code, inverse=st.inverse, columns=columns) | contrast_error_map(
+        st.white, st.black, contrast_threshold, bit_depth=st.bit_depth
     )

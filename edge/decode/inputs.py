@@ -78,6 +78,19 @@ def _check_normalised(name: str, a: np.ndarray) -> None:
                          f"{float(a.max()):g}: divide raw counts by the sensor's full scale (e.g. 4095 for 12 bits)")
 
 
+def check_samples(arrays: list[tuple[str, np.ndarray]], *, scale_free: bool = False) -> None:
+    """The sample checks of `validate` on (name, array) pairs: a dtype it takes, finite and
+    non-negative floats normalised to [0, 1] (any scale with ``scale_free``), one dtype for all;
+    one ValueError naming the array otherwise."""
+    for name, a in arrays:
+        _check_dtype(name, a)
+        if not scale_free:
+            _check_normalised(name, a)
+    if len({a.dtype for _, a in arrays}) != 1:
+        given = ", ".join(f"{name}={a.dtype}" for name, a in arrays)
+        raise ValueError(f"expected {', '.join(name for name, _ in arrays)} of one dtype, got {given}")
+
+
 #: Bit depths `validate` detects uint16 data as, where none is given: the common ADC widths.
 DETECTED_DEPTHS = (8, 10, 12, 14, 16)
 
@@ -145,14 +158,7 @@ def validate(
     arrays = [("frames", frames), ("white", white), ("black", black)]
     if inverse is not None:
         arrays.append(("inverse", inverse))
-    for name, a in arrays:
-        _check_dtype(name, a)
-        if not scale_free:
-            _check_normalised(name, a)
-    dtypes = {a.dtype for _, a in arrays}
-    if len(dtypes) != 1:
-        given = ", ".join(f"{name}={a.dtype}" for name, a in arrays)
-        raise ValueError(f"expected frames, white, black (and inverse) of one dtype, got {given}")
+    check_samples(arrays, scale_free=scale_free)
     if h == 0 or w == 0:
         raise ValueError(f"frames: expected a non-empty image, got shape {frames.shape}")
     if not np.greater(white, black).any():  # one dtype (checked above): compared as is
