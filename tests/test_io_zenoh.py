@@ -38,13 +38,25 @@ def publisher(endpoint):
     pub.close()
 
 
+def _wait_until_matched(publisher, timeout: float = 10.0) -> None:
+    """Until the subscriber's declarations (depth, error, confidence, status) have reached the
+    publisher: each of its zenoh publishers has a matching subscriber (a fixed sleep here could
+    lose the first samples on a loaded machine).  A second subscriber on one of those keys in the
+    subscriber's session then needs no declaration of its own to get the samples."""
+    pubs = [publisher._depth, publisher._error, publisher._confidence, publisher._status]
+    deadline = time.monotonic() + timeout
+    while not all(p.matching_status.matching for p in pubs):
+        assert time.monotonic() < deadline, "the subscriber's declarations never reached the publisher"
+        time.sleep(0.01)
+
+
 @pytest.fixture()
 def subscriber(publisher, endpoint):
     sub = DepthSubscriber(publisher.profile.zenoh.device, connect=[endpoint])
     deadline = time.monotonic() + 5
     while not sub.is_alive(timeout=0.5):  # wait until the sessions see each other
         assert time.monotonic() < deadline, "subscriber never saw the publisher"
-    time.sleep(0.2)  # let subscriber declarations reach the publisher
+    _wait_until_matched(publisher)
     yield sub
     sub.close()
 
@@ -76,7 +88,6 @@ def test_status_and_wire_format(publisher, subscriber, endpoint):
     session = subscriber.session
     sub = session.declare_subscriber("sl/sim-dlp/depth", lambda s: raw.append(
         (s.payload.to_bytes(), s.attachment.to_bytes(), str(s.encoding))))
-    time.sleep(0.2)
     try:
         d, c = _depth(7)
         publisher.publish_depth(d, c, timestamp_ns=123, sequence=7)
@@ -86,6 +97,7 @@ def test_status_and_wire_format(publisher, subscriber, endpoint):
             time.sleep(0.02)
     finally:
         sub.undeclare()
+    assert raw and subscriber.status is not None, "no depth or status arrived"
     payload, attachment, encoding = raw[0]
     assert payload == d.astype("<u2").tobytes()  # little-endian 16UC1, row-major
     header = json.loads(attachment)
@@ -220,7 +232,6 @@ def test_error_probability_round_trip_is_bit_exact(publisher, subscriber):
     raw = []
     sub = subscriber.session.declare_subscriber("sl/sim-dlp/error", lambda s: raw.append(
         (json.loads(s.attachment.to_bytes()), str(s.encoding))))
-    time.sleep(0.2)
     try:
         for i in range(4):
             d, c = _depth(i)
