@@ -201,3 +201,24 @@ def test_replay_report_never_replaces_a_recording(capsys, tmp_path, monkeypatch)
 
     monkeypatch.setattr(edge.io.replay_many, "replay_serial", never)
     _fails(capsys, "replay", recs, "--report", tmp_path, expect="--report")
+
+
+def test_decode_images_never_writes_over_its_inputs(capsys, tmp_path):
+    """`edge decode-images DIR --column-map DIR/white.png --out DIR/pattern_00.png` replaced the
+    capture's own images with its outputs (the capture no longer decoded); an output that could not
+    be written failed only after the decode."""
+    cap = tmp_path / "cap"
+    assert main(["patterns", "write", "--code", "gray-8", "--size", "64x16", str(cap)]) == 0
+    capsys.readouterr()
+    before = {p.name: p.read_bytes() for p in cap.iterdir()}
+    _fails(capsys, "decode-images", cap, "--column-map", cap / "white.png", expect="is an input of this command")
+    _fails(capsys, "decode-images", cap, "--out", cap / "pattern_00.png", expect="is an input of this command")
+    _fails(capsys, "decode-images", cap, "--out", cap / "col.png", "--confidence-out", cap / "manifest.json",
+           expect="--confidence-out")
+    (cap / "c.json").symlink_to(cap / "black.png")
+    _fails(capsys, "decode-images", cap, "--ply", cap / "c.json", expect="is an input of this command")
+    (cap / "c.json").unlink()
+    assert {p.name: p.read_bytes() for p in cap.iterdir()} == before
+    assert main(["decode-images", str(cap), "--out", str(tmp_path / "missing" / "col.png")]) == 2
+    captured = capsys.readouterr()
+    assert "does not exist" in captured.err and "decoded" not in captured.out  # refused before the decode

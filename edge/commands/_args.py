@@ -47,6 +47,7 @@ def check_output_file(path: str | os.PathLike[str], *, option: str) -> None:
         raise ValueError(f"{option} {path}: is a folder; expected a file name")
     folder = path.absolute().parent
     if not folder.is_dir():
-        raise ValueError(f"{option} {path}: folder {folder} does not exist")
+        why = f"{folder} is a file, not a folder" if folder.exists() else f"folder {folder} does not exist"
+        raise ValueError(f"{option} {path}: {why}")
     if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise ValueError(f"{option} {path}: not writable")

@@ -17,6 +17,7 @@ cloud.  Outputs (each optional):
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -27,7 +28,7 @@ from ..decode import METHODS
 from ..decode.layouts import LAYOUTS, decode_axes, load
 from ..decode.procam import DISAGREE_PX, estimate_step, read_calibration, reconstruct
 from ..io.ply import write_ply
-from ._args import parse_size
+from ._args import check_output_file, parse_size
 
 #: Value of an invalid pixel in the uint16 column / row maps.
 MAP_INVALID = 65535
@@ -103,8 +104,33 @@ def _warn(text: str) -> None:
     print(f"edge decode-images: warning: {text}", file=sys.stderr)
 
 
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Before decoding: every output path can be written and none is an input (a file of the capture
+    directory, --manifest, --calibration), which it would replace."""
+    outputs = [(option, getattr(args, option[2:].replace("-", "_")))
+               for option in ("--out", "--confidence-out", "--column-map", "--row-map", "--depth", "--ply")]
+    if args.out is not None and args.confidence_out is None:
+        out = Path(args.out)
+        outputs.append(("--out", str(out.with_name(out.stem + "_confidence.png"))))
+    folder = Path(args.directory)
+    inputs = [p for p in folder.iterdir() if p.is_file()] if folder.is_dir() else []
+    inputs += [Path(p) for p in (args.manifest, args.calibration) if p is not None and os.path.isfile(p)]
+    for option, path in outputs:
+        if path is None:
+            continue
+        try:
+            check_output_file(path, option=option)
+        except ValueError as exc:  # the wording of the write errors below, with the reason
+            kind = "path" if option == "--ply" else "PNG path"
+            raise ValueError(f"{option}: expected a writable {kind}, got {path} ({str(exc).split(': ', 1)[-1]})") from None
+        if os.path.exists(path) and any(os.path.samefile(path, p) for p in inputs):
+            raise ValueError(f"{option} {path} is an input of this command (the capture in {args.directory}, "
+                             f"--manifest or --calibration); write to another file")
+
+
 def run(args: argparse.Namespace) -> int:
     projector = parse_size(args.projector, option="--projector", minimum=2)
+    _check_outputs(args)
     if args.graycode_step is not None and args.graycode_step < 1:
         raise ValueError(f"--graycode-step: expected a positive integer, got {args.graycode_step}")
     for option in ("--depth", "--column-map", "--row-map"):
