@@ -73,6 +73,10 @@ def test_bad_numbers_and_sizes(capsys, tmp_path):
     _fails(capsys, "source", "event-demo", "--size", "64x48", "--flicker", "nan", expect="flicker_hz")
     _fails(capsys, "edc", "eval", "--size", "4x4", "--out", tmp_path / "edc", expect="at least 8x8")
     _fails(capsys, "edc", "run", "--size", "100000x100000", expect="at most 16384x16384")
+    _fails(capsys, "edc", "run", "--size", "32x24", "--seed", "-1", expect="--seed must be >= 0")  # numpy's text
+    _fails(capsys, "edc", "eval", "--size", "8x8", "--seed", "-1", "--out", tmp_path / "e", expect="--seed must be >= 0")
+    _fails(capsys, "edc", "run", "--size", "32x24", "--rounds", "0", expect="--rounds must be >= 1")
+    assert not (tmp_path / "e").exists()
 
 
 def test_user_error_covers_the_environment():

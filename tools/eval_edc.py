@@ -26,6 +26,8 @@ def main(argv: list[str] | None = None) -> int:
         if v != p.get_default(k))
     if a.width < 8 or a.height < 8:  # as `edge edc eval`: its scenes need a few pixels of structure
         raise ValueError(f"--width / --height must be at least 8, got {a.width}x{a.height}")
+    if a.seed < 0:
+        raise ValueError(f"--seed must be >= 0, got {a.seed}")
     if a.rounds < 1:
         raise ValueError(f"--rounds must be >= 1, got {a.rounds}")
     run_report(output_dir(a.out), width=a.width, height=a.height, seed=a.seed, rounds=a.rounds, command=cmd)

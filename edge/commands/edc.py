@@ -33,11 +33,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 
+def _check_seed(seed: int) -> None:
+    if seed < 0:  # numpy's "expected non-negative integer" named no option
+        raise ValueError(f"--seed must be >= 0, got {seed}")
+
+
 def _run(args: argparse.Namespace) -> int:
     from edge.eval.edc import gi_camera, make_gi_scene, score_loop
     from edge.edc.gupta import EnsembleScheme
 
     w, h = parse_size(args.size)
+    _check_seed(args.seed)
+    if args.rounds < 1:
+        raise ValueError(f"--rounds must be >= 1, got {args.rounds}")
     scene = make_gi_scene(args.scene, w, h, args.seed)  # an unknown label: ValueError (one line, exit 2)
     scheme = EnsembleScheme() if args.code == "gupta" else args.code
     opts = {"neighbour_tolerance": None} if args.no_support else {}
@@ -60,6 +68,7 @@ def _eval(args: argparse.Namespace) -> int:
     from edge.eval.edc import run_report
 
     w, h = parse_size(args.size, minimum=8)  # its scenes need a few pixels of structure
+    _check_seed(args.seed)
     run_report(output_dir(args.out), width=w, height=h, seed=args.seed, command=f"edge edc eval --size {args.size}")
     print(f"wrote {args.out}/README.md, roc.png, loop.png")
     return 0
