@@ -16,9 +16,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="GI scene label of edge.eval.edc.GI_SCENES (v-groove, v-groove-30, bowl, scattering, "
                         "corner-30-2b, corner-45-2b, corner-60-gloss, corner-90-gloss, bowl-gloss, scatter-s1.5, "
                         "scatter-s4, scatter-s10, defocus-0.8, defocus-0.9)")
-    r.add_argument("--code", default="xor02-10+crc5", help="EDC code name, or 'gupta' for the ensemble baseline")
+    r.add_argument("--code", default="xor02-10+crc5", help="EDC code name, or 'gupta' for the ensemble baseline (default %(default)s)")
     r.add_argument("--rounds", type=int, default=3, help="rounds of the adaptive loop at most (default 3)")
-    r.add_argument("--size", default="256x192", help="camera WxH")
+    r.add_argument("--size", default="256x192", help="camera WxH (default %(default)s)")
     r.add_argument("--seed", type=int, default=0, help="scene and noise seed (default 0)")
     r.add_argument("--binarisation", choices=("self", "calibrated"), default="self",
                    help="self: per-pixel min/max midpoint, no calibration frames; calibrated: white/black frames")

@@ -17,7 +17,7 @@ def register(subparsers: Any) -> None:
     r.add_argument("out", metavar="OUT.mcap", help="recording to write")
     r.add_argument("--stacks", type=int, required=True, metavar="N", help="stacks to record")
     r.add_argument("--profile", default="sim-dlp", help="firmware profile name or TOML path (default: sim-dlp)")
-    r.add_argument("--first-stack", type=int, default=0, metavar="K", help="stack id (scene time) to start at")
+    r.add_argument("--first-stack", type=int, default=0, metavar="K", help="stack id (scene time) to start at (default 0)")
     r.add_argument("--raw-only", action="store_true", help="record frames only, no depth / confidence")
     r.add_argument("--overwrite", action="store_true", help="let OUT.mcap replace an existing file")
     r.set_defaults(func=record)
