@@ -112,10 +112,15 @@ def test_oak_sensor_host_pipeline_end_to_end():
     asm.flush()
     assert [s.stack for s in stacks] == [0, 1]
     assert asm.counters.stacks_incomplete == 2 and asm.counters.sequence_gaps == 1
-    # one dot + one flood command at start and after every frame; BLACK frames switch the dots off
-    dots = [v for k, v in emitter.commands if k == "dot"]
-    assert len(dots) == 1 + len(seqs) + 1 and dots[-1] == 0.0
-    assert 0.0 in dots and 0.8 in dots
+    # one dot + one flood command at start (position 0), after every frame for the frame lead_frames
+    # ahead of it (position seq - first seq + lead), and at stop (off); BLACK (position 4 of 5)
+    # switches the dots off, and the flood LED stays off (flood_intensity 0)
+    lead = sensor.emitters.lead_frames
+    assert lead == 2
+    want = [0.8] + [0.0 if (s - seqs[0] + lead) % 5 == 4 else 0.8 for s in seqs] + [0.0]
+    assert [k for k, _ in emitter.commands] == ["dot", "flood"] * len(want)
+    assert [v for k, v in emitter.commands if k == "dot"] == want
+    assert all(v == 0.0 for k, v in emitter.commands if k == "flood")
 
 
 def test_frame_from_imgframe_uint16():
