@@ -92,8 +92,12 @@ def test_three_services_claim_distinct_codes_keep_depth_refuse_fourth_and_free_k
         assert all(st["room"] == "lab" for st in status.values())
         # depth with the others running vs the same member alone (same stack, same code)
         depth.clear()
-        while time.monotonic() < deadline and min((len(v) for v in depth.values()), default=0) < 4 or len(depth) < 3:
+        deadline = time.monotonic() + 30
+        # (the loop read `deadline and fewer than 4 maps or fewer than 3 devices`: with a member
+        # silent it never ended, and the test hung until pytest's timeout instead of failing)
+        while time.monotonic() < deadline and (len(depth) < 3 or min(len(v) for v in depth.values()) < 4):
             time.sleep(0.1)
+        assert len(depth) == 3 and min(len(v) for v in depth.values()) >= 4, {d: len(v) for d, v in depth.items()}
         assert {dev: st["code"] for dev, st in status.items()} == codes
         for dev, samples in list(depth.items()):
             n_valid = n_kept = n_extra = n_pix = 0

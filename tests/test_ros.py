@@ -350,7 +350,9 @@ def test_edge_run_ros_cli_publishes_through_the_router(tmp_path, capsys):
     try:
         rc = main(["run", "--profile", str(profile), "--ros", "--stacks", "3", "--quiet",
                    "--listen", f"tcp/127.0.0.1:{free_port()}"])
-        time.sleep(0.5)
+        deadline = time.monotonic() + 10  # samples still on their way through the router
+        while not got and time.monotonic() < deadline:
+            time.sleep(0.05)
     finally:
         sub.undeclare()
         client.close()
