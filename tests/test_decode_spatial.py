@@ -139,6 +139,35 @@ def test_median_filter_prefers_a_candidate_near_the_vote():
     assert out1[2, 2] == -1 and not valid1[2, 2] and (out1 == np.where(valid1, out0, -1)).all()
 
 
+
+def test_median_fills_only_codebook_rows_in_use():
+    """The paper's fill (confidence rule) took the neighbours' prediction as it was: at the
+    projector's edge it published rows the code does not have (1024, 1025 for a 1024-row code)
+    and, with ``columns``, rows beyond those in use; a prediction outside 0..columns-1 is now
+    not filled (decode passes its codebook rows, `spatial_stage`'s ``columns``)."""
+    h, w = 5, 5
+    col = np.full((h, w), 1019, np.int32) + np.arange(w)[None, :]  # rows 1019..1023 on a slope
+    conf = np.full((h, w), 0.9, np.float32)
+    conf[:, 4] = 0.0
+    col[:, 4] = 3  # unreliable right edge: the voters' disparity x - col = -1019 predicts row 1023 there
+    col[:, 3] = 1022
+    conf[:, 3] = 0.0
+    out, valid = confidence_median(col, conf, np.ones((h, w), bool), t_low=0.0, t_high=0.5)
+    assert (out[:, 3] == 1022).all() and (out[:, 4] == 1023).all()  # in range: filled as before
+    out, valid = confidence_median(col, conf, np.ones((h, w), bool), t_low=0.0, t_high=0.5, columns=1023)
+    assert (out[:, 4] == -1).all() and not valid[:, 4].any() and (out[:, 3] == 1022).all()
+    # decode: a ramp that reaches the code's last row, with a noisy right edge
+    code = get_code("ecc-22-10")
+    rng = np.random.default_rng(0)
+    cols = np.clip(np.arange(40)[None] + 1000, 0, code.size - 1).repeat(5, 0)
+    cap = make_capture(code, cols, rng=rng, albedo=0.5, sigma_s=0.02)
+    frames = cap.frames.copy()
+    frames[:, :, -3:] = rng.integers(0, 255, frames[:, :, -3:].shape)
+    for method in ("median", "list+median"):
+        for ncols in (code.size, 1010):
+            d = decode(frames, cap.white, cap.black, code, method=method, columns=ncols)
+            assert d.column.max() < ncols and (d.valid == (d.column >= 0)).all(), (method, ncols)
+
 def test_median_under_the_error_rule_leaves_shadows_unpublished():
     """Under the error rule (decode's default) method "median" publishes a pixel only on its own
     candidates: the shadows of edge.sim's flying scene stay holes, and what it publishes meets the

@@ -205,7 +205,7 @@ def _decode(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code
     found = search_candidates(stack, code, s, columns=ncols, band=band, stripe=stripe)
     column0, eligible = eligibility(stack, found.candidates, s.min_contrast)
     spatial = spatial_stage(s, found.candidates, found.confidence, column0, eligible, stripe=stripe,
-                            distances=found.distances, choices=band_choices(ncols, band, stripe))
+                            distances=found.distances, choices=band_choices(ncols, band, stripe), columns=ncols)
     column, valid = valid_mask(spatial, found.confidence, eligible, s)
     return Decoded(column=column, confidence=found.confidence, valid=valid, candidates=found.candidates,
                    distances=found.distances, stats=found.stats)

@@ -23,7 +23,8 @@ Disparity convention (docs/architecture.md): a pixel at camera column x decoded 
   (``vote="column"``).  A pixel with confidence < t_high and at least `min_votes` votes gets the
   prediction ``p = x - median`` (rounded, in rows) or ``p = median``: it takes its
   best-ranked candidate within `tol` rows of p (its own column when no `candidates` are given),
-  else p itself (``fill=True``, the paper's filter) or nothing: invalid (``fill=False``, the
+  else p itself (``fill=True``, the paper's filter, where p is a codebook row in use: ``0 <= p <
+  columns``) or nothing: invalid (``fill=False``, the
   error rule's: a pixel is published only on its own data's support, so a shadow between lit
   neighbours stays a hole).  With fewer votes it keeps its column, valid iff confidence >= t_low.
   High-confidence pixels never change.
@@ -241,13 +242,17 @@ def confidence_median(
     vote: str = "disparity",
     stripe: int = 1,
     fill: bool = True,
+    columns: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Confidence-based median filter (see module docstring; ``fill``: a pixel none of whose
     candidates is near the prediction takes the prediction (True) or is invalid (False)).
 
     column: (H, W) int32 codebook rows (-1 = none); confidence (H, W) float32; eligible (H, W)
-    bool pixels that may vote or be filled; candidates: optional (H, W, K) int32 rows best-first.
-    Returns column (H, W) int32 and valid (H, W) bool.
+    bool pixels that may vote or be filled; candidates: optional (H, W, K) int32 rows best-first;
+    columns: the codebook rows in use (None: no upper bound): a prediction outside ``0 ..
+    columns - 1`` is not filled (at the edge of the projector the neighbours' disparity
+    predicted rows the code does not have).  Returns column (H, W) int32 (-1 where a
+    prediction was not filled) and valid (H, W) bool.
     """
     if window < 1 or window % 2 == 0:
         raise ValueError(f"window: expected an odd size >= 1, got {window}")
@@ -271,6 +276,10 @@ def confidence_median(
     _conf_median(col, np.ascontiguousarray(confidence, np.float32), np.ascontiguousarray(eligible, np.bool_), cand,
                  float(t_low), float(t_high), window // 2, int(min_votes), int(tol), vote == "disparity", int(stripe),
                  bool(fill), out_col, out_valid)
+    if fill and columns is not None:  # a filled prediction beyond the rows in use (candidates never are)
+        beyond = out_col >= int(columns)
+        out_col[beyond] = -1
+        out_valid[beyond] = False
     return out_col, out_valid
 
 
@@ -510,14 +519,16 @@ def published_error(candidates: np.ndarray, distances: np.ndarray, error: np.nda
 
 def spatial_stage(settings: DecodeSettings, candidates: np.ndarray, confidence: np.ndarray, column: np.ndarray,
                   eligible: np.ndarray, *, stripe: int, distances: np.ndarray | None = None,
-                  choices: int | None = None, fill: bool = True) -> Spatial:
+                  choices: int | None = None, fill: bool = True, columns: int | None = None) -> Spatial:
     """The spatial methods of ``settings.method`` on a candidate search's output.
 
     candidates: (H, W, 3) int32 rows best-first; confidence: (H, W) float32; column: (H, W) int32
     top-1 rows; eligible: (H, W) bool (contrast and a column, `edge.decode.validity.eligibility`);
     stripe: projector columns per codebook row (the disparity of the filters is in projector
-    pixels).  "soft" / "hard": the support test (t_vote = t_high) if ``spatial_check``;
-    "list": `order_prior`; "median": `confidence_median` (with the candidates, and ``fill``); "list+median":
+    pixels); columns: the codebook rows in use (the median filter fills no row beyond them).
+    "soft" / "hard": the support test (t_vote = t_high) if ``spatial_check``;
+    "list": `order_prior`; "median": `confidence_median` (with the candidates, ``fill`` and
+    ``columns``); "list+median":
     both in turn; "sgm": `edge.decode.sgm.from_search` on the search's ML `distances` (H, W, 3)
     with N = `choices` candidate columns (both required), valid where eligible and its error
     probability < ``max_error``.
@@ -537,7 +548,8 @@ def spatial_stage(settings: DecodeSettings, candidates: np.ndarray, confidence: 
         column, valid = order_prior(candidates, confidence, eligible, t_high=t_high, t_low=t_low, stripe=stripe)
     if method in ("median", "list+median"):
         column, valid = confidence_median(column, confidence, eligible & (column >= 0), t_low=t_low,
-                                          t_high=t_high, candidates=candidates, stripe=stripe, fill=fill)
+                                          t_high=t_high, candidates=candidates, stripe=stripe, fill=fill,
+                                          columns=columns)
     if valid is None:
         raise ValueError(f"method: expected one of soft, hard, list, median, list+median, sgm, got {method!r}")
     return Spatial(column, None, valid)

@@ -97,7 +97,7 @@ def decode_device(ds: DeviceStack, code: Code, s: DecodeSettings, *, columns: in
     from ...decoder import band_choices  # N of method "sgm" (host stage)
 
     out = {"candidates": cand, "distances": dist, "confidence": conf, "column0": col0, "eligible": elig,
-           "stats": st, "choices": band_choices(columns, band, stripe)}
+           "stats": st, "choices": band_choices(columns, band, stripe), "rows": columns}
     if s.method in ("soft", "hard"):
         column = buffer(buffers, "column", (h, w), np.int32, stream)
         valid = buffer(buffers, "valid", (h, w), np.bool_, stream)
@@ -352,7 +352,8 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
         column, valid = host.get("column"), host.get("valid")
     else:
         spatial = spatial_stage(s, host["candidates"], host["confidence"], host["column0"], host["eligible"],
-                                stripe=stripe, distances=host.get("distances"), choices=out.get("choices"))
+                                stripe=stripe, distances=host.get("distances"), choices=out.get("choices"),
+                                columns=out.get("rows"))
         column, valid = valid_mask(spatial, host["confidence"], host["eligible"], s)
     got = {"column": column, "valid": valid, "confidence": host.get("confidence"),
            "candidates": host.get("candidates"), "distances": host.get("distances")}
