@@ -137,9 +137,14 @@ def decode(
     the fully lit / dark projector, same dtype; inverse: optional (n, H, W) inverse-pattern
     frames.  min/max_disparity: candidate columns for camera column x are those whose projector
     columns [row*stripe, (row+1)*stripe) meet [x - max_disparity, x - min_disparity].
-    columns: codebook rows in use (projector width / stripe, default all).  bit_depth:
-    significant bits of uint16 frames (None: detected from the data, the smallest of 8, 10, 12,
-    14, 16 bits that holds its largest value; `edge.decode.inputs.validate`).
+    columns: codebook rows in use (projector width / stripe, default all; an integer).  stripe:
+    projector columns per codebook row (an integer >= 1).  bit_depth: significant bits of
+    integer frames, an integer that holds every value (uint16: None = detected from the data,
+    the smallest of 8, 10, 12, 14, 16 bits that holds its largest value; uint8: None = 8;
+    ignored for floats; `edge.decode.inputs.bit_depth_of`).  Either byte order.  Returns a
+    `Decoded` of (H, W) arrays (see there for dtypes and units).  Bad input raises one ValueError
+    naming it (`NoPatternContrast` where white <= black everywhere); a `code` or `settings` of
+    the wrong type one TypeError.
 
     settings: a `DecodeSettings` (default `DEFAULT_SETTINGS`); ``options`` are any of its fields
     (``method="list"``, ``sigma_r=0.02``, ...) applied on top, unknown names raise one
