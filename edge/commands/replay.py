@@ -58,7 +58,7 @@ def replay(args: argparse.Namespace) -> int:
         from edge.profiles import load_profile
 
         expected = load_profile(args.profile)
-    sink = None
+    sink = bar = None
     callbacks = []
     ply = None
     if args.ply:
@@ -82,15 +82,24 @@ def replay(args: argparse.Namespace) -> int:
 
             ply.profile = RecordingReader(path).profile
 
+        from tqdm import tqdm
+
+        # a long recording decodes for minutes: a bar on a terminal (off when stderr is not one)
+        bar = tqdm(total=_depth_maps(path), desc="replay", unit="depth map", file=sys.stderr, disable=None,
+                   leave=False)
+        callbacks.append(lambda result: bar.update(1))
+
         def on_result(result):
             for cb in callbacks:
                 cb(result)
 
-        report = replay_recording(path, expected_profile=expected, on_result=on_result if callbacks else None)
+        report = replay_recording(path, expected_profile=expected, on_result=on_result)
     except RecordingError as exc:
         print(f"edge replay: error: {exc}", file=sys.stderr)
         return 2
     finally:
+        if bar is not None:
+            bar.close()
         if sink is not None:
             sink.close()
     for line in report.lines():
@@ -105,6 +114,17 @@ def replay(args: argparse.Namespace) -> int:
         return 2
     print("edge replay: depth reproduced bit for bit")
     return 0
+
+
+def _depth_maps(path: str) -> int | None:
+    """Depth maps recorded in ``path`` (its summary's message counts), None without a summary."""
+    from edge.io.mcap import RecordingReader
+
+    summary = RecordingReader(path).summary
+    if summary is None or summary.statistics is None:
+        return None
+    counts = summary.statistics.channel_message_counts
+    return sum(counts.get(cid, 0) for cid, channel in summary.channels.items() if channel.topic.endswith("/depth"))
 
 
 class _PlyWriter:
