@@ -68,7 +68,7 @@ def write_ply(path: str | os.PathLike, xyz: np.ndarray, *, colors: np.ndarray | 
                 f.write(rec.tobytes())
         else:
             for i in range(xyz.shape[0]):
-                line = f"{xyz[i, 0]:.6g} {xyz[i, 1]:.6g} {xyz[i, 2]:.6g}"
+                line = f"{xyz[i, 0]:.9g} {xyz[i, 1]:.9g} {xyz[i, 2]:.9g}"  # 9 digits: float32 exactly
                 if colors is not None:
                     line += f" {colors[i, 0]} {colors[i, 1]} {colors[i, 2]}"
                 f.write((line + "\n").encode("ascii"))
