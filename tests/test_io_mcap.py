@@ -177,8 +177,10 @@ def test_non_mcap_and_other_profile_errors(tmp_path, recording, profile):
         RecordingReader(recording, expected_profile=load_profile("oak-d-pro"))
     with pytest.raises(ProfileMismatchError, match=r"differs from the expected one in decoder\.method"):
         RecordingReader(recording, expected_profile=apply_update(profile, {"decoder": {"method": "hard"}}))
-    # settings that do not affect decoding are not a mismatch
-    RecordingReader(recording, expected_profile=apply_update(profile, {"zenoh": {"listen": ["tcp/127.0.0.1:9"]}}))
+    # settings that do not affect decoding are not a mismatch: the file opens with its own profile
+    other_port = apply_update(profile, {"zenoh": {"listen": ["tcp/127.0.0.1:9"]}})
+    reader = RecordingReader(recording, expected_profile=other_port)
+    assert reader.profile == profile != other_port and len(list(reader.frames())) == N_STACKS * PER_STACK
     assert issubclass(NotMcapError, RecordingError) and issubclass(RecordingError, ValueError)
 
 

@@ -237,12 +237,15 @@ def test_event_replay_sensor_streams_recorded_slices(tmp_path):
     assert counts == {"frames": 16, "stacks": 2, "outputs": 2}
     from edge.io.mcap import RecordingReader
 
-    recorded = [o.depth_mm for o in RecordingReader(out).outputs()]
+    recorded = {o.stack: o.depth_mm for o in RecordingReader(out).outputs()}
     sink = Collect()
     status = Service(p, open_sensor(p, "replay", replay_path=str(out), max_speed=True), sinks=[sink],
                      queue_capacity=8).run()
     assert status["stacks_decoded"] == 2
-    assert all(np.array_equal(a.depth_mm, b) for a, b in zip(sink.results, recorded))
+    # stack by stack (zip() of two lists passed with either of them empty)
+    replayed = {r.stack: r.depth_mm for r in sink.results}
+    assert sorted(replayed) == sorted(recorded) == [0, 1]
+    assert all(np.array_equal(replayed[s], recorded[s]) and replayed[s].any() for s in recorded)
 
 
 def test_event_pipeline_counts_exactly_and_rejects_frames():
