@@ -87,6 +87,8 @@ def test_cli_patterns_write(tmp_path, capsys):
     assert main(["patterns", "write", "--code", "gray-10", "--size", "2048x768", str(tmp_path / "x")]) == 2
     assert "larger than" in capsys.readouterr().err
     assert main(["patterns", "write", "--size", "big", str(tmp_path / "y")]) == 2
+    assert "--size expects WIDTHxHEIGHT" in capsys.readouterr().err and not (tmp_path / "y").exists()
+    assert not (tmp_path / "x").exists()  # the refused 2048-wide set wrote nothing either
 
 
 def test_cli_codes(capsys):
