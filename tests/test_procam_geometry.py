@@ -90,7 +90,8 @@ def test_triangulate_exact_correspondences():
 def test_decode_images_depth_matches_the_plane(rig, capsys):
     d = rig["dir"]
     argv = ["decode-images", str(rig["cap"]), "--projector", f"{PROJ_W // STEP}x{PROJ_H // STEP}",
-            "--calibration", str(rig["xml"]), "--depth", str(d / "depth.png"), "--ply", str(d / "cloud.ply")]
+            "--calibration", str(rig["xml"]), "--depth", str(d / "depth.png"), "--ply", str(d / "cloud.ply"),
+            "--depth-picture", str(d / "depth_view.png")]
     assert main(argv) == 0
     out = capsys.readouterr()
     assert "graycode step 2, the step that fits" in out.out and "warning" not in out.err
@@ -102,6 +103,13 @@ def test_decode_images_depth_matches_the_plane(rig, capsys):
     err = depth[valid].astype(np.float64) - z[valid]
     # one 2-pixel cell is about Z^2 * 2 / (f_p * baseline) = 900^2 * 2 / (520 * 180) = 17 mm of depth
     assert np.median(np.abs(err)) < 5.0 and np.percentile(np.abs(err), 99) < 15.0
+    # the picture for viewing: black exactly where depth is invalid, TURBO's blue end near, red end far
+    view = cv2.imread(str(d / "depth_view.png"), cv2.IMREAD_UNCHANGED)
+    assert view.dtype == np.uint8 and view.shape == (CAM_H, CAM_W, 3)
+    assert not view[~valid].any() and (view[valid].max(axis=1) > 0).all()
+    near, far = depth <= np.percentile(depth[valid], 5), depth >= np.percentile(depth[valid], 95)
+    b, r = view[..., 0].astype(int), view[..., 2].astype(int)
+    assert ((b - r)[near & valid]).mean() > 50 and ((r - b)[far & valid]).mean() > 50
     xyz, _ = read_ply(d / "cloud.ply")
     assert xyz.shape[0] == valid.sum()
     fit = fit_plane(xyz.astype(np.float64) * 1000.0, 15.0)
@@ -122,8 +130,9 @@ def test_wrong_step_is_reported(rig, capsys):
 
 
 def test_depth_needs_calibration_and_both_axes(rig, tmp_path, capsys):
-    assert main(["decode-images", str(rig["cap"]), "--projector", "128x96", "--depth", str(tmp_path / "d.png")]) == 2
-    assert "expected --calibration" in capsys.readouterr().err
+    for option in ("--depth", "--depth-picture"):
+        assert main(["decode-images", str(rig["cap"]), "--projector", "128x96", option, str(tmp_path / "d.png")]) == 2
+        assert "expected --calibration" in capsys.readouterr().err
     pats = tmp_path / "cols"
     assert main(["patterns", "write", "--code", "gray-8", "--size", "256x8", str(pats)]) == 0
     assert main(["decode-images", str(pats), "--calibration", str(rig["xml"]), "--ply", str(tmp_path / "c.ply")]) == 2
@@ -138,3 +147,9 @@ def test_bad_output_paths_are_one_line_errors(rig, tmp_path, capsys):
     assert "--ply: expected a writable path" in capsys.readouterr().err
     assert main(base + ["--depth", str(tmp_path / "no" / "such" / "d.png")]) == 2
     assert "--depth: expected a writable PNG path" in capsys.readouterr().err
+    assert main(base + ["--depth-picture", str(tmp_path / "no" / "such" / "v.png")]) == 2
+    assert "--depth-picture: expected a writable PNG path" in capsys.readouterr().err
+    for bad in ("-1", "0", "nan"):  # refused before decoding, by name
+        assert main(base + ["--max-error", bad, "--depth", str(tmp_path / "d.png")]) == 2
+        assert f"--max-error: expected a reprojection error > 0 px, got {float(bad)}" in capsys.readouterr().err
+    assert not (tmp_path / "d.png").exists()

@@ -10,6 +10,8 @@ cloud.  Outputs (each optional):
   pixel (``graycode step * decoded cell``), 65535 = invalid.
 * ``--depth``: uint16 PNG in camera pixels, Z along the camera optical axis in millimetres,
   0 = invalid (ROS REP 118 16UC1).  Needs --calibration and a layout with columns and rows.
+* ``--depth-picture``: the same depth colour-mapped for viewing (TURBO over the 1st..99th
+  percentile of the valid depths, invalid black).  Needs --calibration.
 * ``--ply``: one vertex per pixel with depth, x y z in metres in the camera optical frame
   (x right, y down, z forward), coloured with the white frame.
 """
@@ -29,6 +31,7 @@ from ..decode.layouts import LAYOUTS, decode_axes, load
 from ..decode.procam import DISAGREE_PX, estimate_step, read_calibration, reconstruct
 from ..io.ply import write_ply
 from ._args import check_output_file, parse_size
+from ._pictures import colorize_depth
 
 #: Value of an invalid pixel in the uint16 column / row maps.
 MAP_INVALID = 65535
@@ -60,6 +63,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--max-error", type=float, default=None,
                    help="drop depth where the projector reprojection error exceeds this many pixels (default max(3, 2*step))")
     p.add_argument("--depth", default=None, help="uint16 PNG depth in mm along the camera axis, 0 = invalid (needs --calibration)")
+    p.add_argument("--depth-picture", default=None,
+                   help="PNG of the depth colour-mapped for viewing (TURBO, near blue, invalid black; needs --calibration)")
     p.add_argument("--ply", default=None, help="PLY point cloud in metres, camera optical frame (needs --calibration)")
     p.set_defaults(func=run)
 
@@ -108,7 +113,8 @@ def _check_outputs(args: argparse.Namespace) -> None:
     """Before decoding: every output path can be written and none is an input (a file of the capture
     directory, --manifest, --calibration), which it would replace."""
     outputs = [(option, getattr(args, option[2:].replace("-", "_")))
-               for option in ("--out", "--confidence-out", "--column-map", "--row-map", "--depth", "--ply")]
+               for option in ("--out", "--confidence-out", "--column-map", "--row-map", "--depth", "--depth-picture",
+                             "--ply")]
     if args.out is not None and args.confidence_out is None:
         out = Path(args.out)
         outputs.append(("--out", str(out.with_name(out.stem + "_confidence.png"))))
@@ -131,15 +137,17 @@ def _check_outputs(args: argparse.Namespace) -> None:
 def run(args: argparse.Namespace) -> int:
     projector = parse_size(args.projector, option="--projector", minimum=2)
     _check_outputs(args)
+    if args.max_error is not None and not args.max_error > 0:
+        raise ValueError(f"--max-error: expected a reprojection error > 0 px, got {args.max_error}")
     if args.graycode_step is not None and args.graycode_step < 1:
         raise ValueError(f"--graycode-step: expected a positive integer, got {args.graycode_step}")
     for option in ("--depth", "--column-map", "--row-map"):
         path = getattr(args, option[2:].replace("-", "_"))
         if path is not None and Path(path).suffix.lower() not in _SIXTEEN_BIT:
             raise ValueError(f"{option}: expected a .png (or .tif) path for a 16-bit image, got {path}")
-    geometric = args.depth is not None or args.ply is not None
+    geometric = args.depth is not None or args.depth_picture is not None or args.ply is not None
     if geometric and args.calibration is None:
-        raise ValueError("--depth / --ply: expected --calibration FILE (a procam calibration_result.xml)")
+        raise ValueError("--depth / --depth-picture / --ply: expected --calibration FILE (a procam calibration_result.xml)")
     calib = read_calibration(args.calibration) if args.calibration else None
     layout = "manifest" if args.manifest is not None and args.layout == "auto" else args.layout
     cap = load(args.directory, layout, projector, manifest=args.manifest)
@@ -150,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
     axes = ("columns", "rows") if need_rows else ("columns",)
     dec = decode_axes(cap, axes, method=args.method)
     if geometric and not {"columns", "rows"} <= set(dec):
-        raise ValueError(f"--depth / --ply: expected a capture that codes both projector columns and rows, "
+        raise ValueError(f"--depth / --depth-picture / --ply: expected a capture that codes both projector columns and rows, "
                          f"{args.directory} codes only {', '.join(dec) or 'nothing'} "
                          f"(write patterns with --orientation both)")
     for option, axis in (("--out", "columns"), ("--column-map", "columns"), ("--row-map", "rows")):
@@ -205,6 +213,9 @@ def run(args: argparse.Namespace) -> int:
         if args.depth is not None:
             _imwrite(args.depth, rec.depth, "--depth")
             written.append(args.depth)
+        if args.depth_picture is not None:
+            _imwrite(args.depth_picture, colorize_depth(rec.depth), "--depth-picture")
+            written.append(args.depth_picture)
         if args.ply is not None:
             grey = cap.white[rec.mask]
             if grey.dtype != np.uint8:
@@ -214,5 +225,6 @@ def run(args: argparse.Namespace) -> int:
             except OSError as exc:
                 raise ValueError(f"--ply: expected a writable path, got {args.ply} ({exc.strerror})") from None
             written.append(args.ply)
-    print(f"wrote {', '.join(written)}" if written else "wrote nothing (give --out, --column-map, --row-map, --depth or --ply)")
+    print(f"wrote {', '.join(written)}" if written else
+          "wrote nothing (give --out, --column-map, --row-map, --depth, --depth-picture or --ply)")
     return 0

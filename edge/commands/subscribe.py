@@ -26,20 +26,7 @@ import numpy as np
 from edge.profiles import DEFAULT_PROFILE
 
 from ._args import check_output_file
-
-
-def colorize_depth(depth_mm: np.ndarray) -> np.ndarray:
-    """(H, W, 3) uint8 BGR image of a uint16 depth map: TURBO over the valid range, 0 -> black."""
-    import cv2
-
-    valid = depth_mm > 0
-    out = np.zeros(depth_mm.shape + (3,), np.uint8)
-    if valid.any():
-        lo, hi = np.percentile(depth_mm[valid], [1, 99])
-        scaled = np.clip((depth_mm.astype(np.float32) - lo) / max(hi - lo, 1.0), 0, 1)
-        out = cv2.applyColorMap((scaled * 255).astype(np.uint8), cv2.COLORMAP_TURBO)
-        out[~valid] = 0
-    return out
+from ._pictures import colorize_depth
 
 
 def _run(args: argparse.Namespace) -> int:
