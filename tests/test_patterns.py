@@ -68,6 +68,20 @@ def test_render_bad_input(kwargs, match):
         render(get_code("gray-10"), **kwargs)
 
 
+def test_write_patterns_refuses_a_stripe_that_leaves_one_cell(tmp_path, capsys):
+    # one cell sent one codeword to every projector column: a set that decodes nothing, written with exit 0
+    for kwargs, match in [(dict(width=64, height=8, stripe=1000), "64 pixels wide gets one code cell"),
+                          (dict(width=64, height=8, stripe=64), "at most 63 pixels"),
+                          (dict(width=64, height=8, stripe=8, orientation="both"), "8 pixels high")]:
+        with pytest.raises(ValueError, match=match):
+            write_patterns(get_code("gray-10"), tmp_path / "set", **kwargs)
+        assert not (tmp_path / "set").exists()
+    assert write_patterns(get_code("gray-10"), tmp_path / "set", 64, 8, stripe=63)["columns_used"] == 2
+    assert main(["patterns", "write", "--code", "gray-10", "--size", "64x8", "--stripe", "1000",
+                 str(tmp_path / "cli")]) == 2
+    assert "one code cell" in capsys.readouterr().err and not (tmp_path / "cli").exists()
+
+
 def test_write_patterns(tmp_path):
     code = get_code("ecc-22-10")
     manifest = write_patterns(code, tmp_path, 100, 20, stripe=2)

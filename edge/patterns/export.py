@@ -54,6 +54,12 @@ def write_patterns(code: Code, directory: str | Path, width: int, height: int, *
     if orientation not in ORIENTATIONS:
         raise ValueError(f"orientation must be one of {', '.join(ORIENTATIONS)}, got {orientation!r}")
     axes = ("columns", "rows") if orientation == "both" else (orientation,)
+    for axis in axes:  # one cell sends one codeword to the whole projector: nothing to decode
+        pixels = int(width if axis == "columns" else height)
+        if int(stripe) >= 1 and -(-pixels // int(stripe)) < 2:
+            raise ValueError(f"stripe {stripe}: a projector {pixels} pixels {'wide' if axis == 'columns' else 'high'} "
+                             f"gets one code cell along its {axis}; expected a stripe of at most {max(1, (pixels - 1))} "
+                             f"pixels (at least 2 cells)")
     rendered = [(axis, render(code, width, height, stripe=stripe, orientation=axis)) for axis in axes]
     white, black = calibration(width, height)
     out = _prepare(directory, overwrite)
