@@ -311,6 +311,26 @@ def test_nary_code_brute_force():
     assert np.all(np.take_along_axis(costs, d.candidates[..., :1], -1)[..., 0] - costs.min(-1) <= n / 256)
 
 
+
+@pytest.mark.parametrize("inverse", [False, True])
+@pytest.mark.parametrize("name", ["nary3-6", "rs8-7-3"])
+def test_nary_ml_distances_are_non_negative(name, inverse):
+    """The N-ary kernel's ML costs kept each level's log(var) (negative for normalised
+    intensities), so distances went negative and the confidence rule's (d2 - d1) / d2 exceeded 1
+    (99 % of an edge.sim nary3-6 capture's pixels above 1, up to 2000 here); they now leave out the
+    pixel's smallest log(var), as the binary kernels do, and the candidates are unchanged."""
+    code = get_code(name)
+    rng = np.random.default_rng(370)
+    h, w = 3, 70
+    cols = np.clip(np.arange(w)[None] + code.size // 3 + rng.integers(0, 2, (h, w)), 0, code.size - 1)
+    cap = make_capture(code, cols, rng=rng, albedo=rng.uniform(0.05, 0.5, (h, w)), sigma_s=0.06, inverse=inverse)
+    d = decode(cap.frames, cap.white, cap.black, code, inverse=cap.inverse)
+    ok = d.candidates[..., 1] >= 0
+    assert ok.mean() > 0.9 and (d.distances[d.candidates >= 0] >= 0).all()
+    assert ((d.confidence >= 0) & (d.confidence <= 1)).all()
+    d1, d2 = d.distances[..., 0][ok], d.distances[..., 1][ok]
+    assert np.allclose(d.confidence[ok], (d2 - d1) / d2, atol=1e-5)
+
 def test_order_prior_fixes_constructed_swap():
     # one row: anchors at x=2 (col 100) and x=8 (col 110); x=5 decodes to 612 with low
     # confidence, its second candidate 105 respects the order and must be chosen.

@@ -9,14 +9,33 @@ from .cost import METRIC_HARD, METRIC_ML, Y_CLIP
 from .top3 import IDX_BITS, NO_KEY, _insert, _pixel_start, _write, _write_none
 
 
+@njit(cache=True, inline="always")
+def _nary_lmin(a, b, has_inv, q, sr2, ss2):
+    """The smallest ``log(var)`` of a pixel's q symbol levels (white a, black b normalised):
+    the per-pixel constant `soft_nary`'s ML costs leave out (distances are -2 log-likelihoods
+    up to a per-pixel constant; without it they went negative and ``(d2 - d1) / d2`` above 1)."""
+    d = a - b
+    lmin = np.inf
+    for s in range(q):
+        frac = s / (q - 1)
+        if has_inv:
+            var = 2.0 * sr2 + ss2 * (b + d * frac + b + d * (1.0 - frac))
+        else:
+            var = sr2 + ss2 * (b + d * frac)
+        lmin = min(lmin, np.log(var))
+    return lmin
+
+
 @njit(cache=True, parallel=True)
 def soft_nary(frames, inverse, has_inv, white, black, scale, model, tables, band, out_col, out_dist, out_conf):
     """Exact top-3 over the codebook rows in the band for an N-ary code (q levels).
 
     Symbol s has level mu_s = black + (white - black) * s / (q - 1) (with inverse frames the
     difference r - r_inv has mean (white - black) * (2 s / (q - 1) - 1)); per-sample costs as
-    in `edge.decode.kernels.cost` (ML: Gaussian -2 log-likelihood; normalised: (x - s/(q-1))**2;
-    hard: 0 for the nearest level, 1 otherwise).  Brute force over the candidate rows.
+    in `edge.decode.kernels.cost` (ML: Gaussian -2 log-likelihood, ``(obs - mu)**2 / var +
+    log(var)``, less the pixel's smallest ``log(var)`` over the q levels so that every cost is
+    non-negative, as the binary kernels' (`_nary_lmin`); normalised: (x - s/(q-1))**2; hard: 0
+    for the nearest level, 1 otherwise).  Brute force over the candidate rows.
     model: `CostModel` (ltab unused); tables: `edge.decode.tables.NaryTables`; band: `Band`.
     """
     metric, sr2, ss2, q_scale = model.metric, model.sr2, model.ss2, model.q_scale
@@ -32,6 +51,7 @@ def soft_nary(frames, inverse, has_inv, white, black, scale, model, tables, band
                 _write_none(out_col, out_dist, out_conf, yy, xx)
                 continue
             d = a - b
+            lmin = _nary_lmin(a, b, has_inv, q, sr2, ss2) if metric == METRIC_ML else 0.0
             dmin = 0.0
             for i in range(n):
                 r = frames[i, yy, xx] * scale
@@ -48,7 +68,7 @@ def soft_nary(frames, inverse, has_inv, white, black, scale, model, tables, band
                         obs = r
                         var = sr2 + ss2 * mu
                     if metric == METRIC_ML:
-                        val = (obs - mu) * (obs - mu) / var + np.log(var)
+                        val = (obs - mu) * (obs - mu) / var + (np.log(var) - lmin)
                     else:
                         x = (obs - mu) / d
                         val = x * x

@@ -1,6 +1,7 @@
 """Soft exact top-3 of an N-ary code (q levels) on the GPU: `kernels.soft_nary`, one thread per pixel.
 
-Per sample and symbol the cost ``(obs - mu)**2 / var + log(var)`` (ML) or ``((obs - mu) / d)**2``,
+Per sample and symbol the cost ``(obs - mu)**2 / var + log(var) - lmin`` (ML; lmin the pixel's
+smallest log(var), `kernels.nary._nary_lmin`) or ``((obs - mu) / d)**2``,
 hard: 0 for the nearest level, 1 otherwise; quantised relative to the sample's best symbol, then
 a scan of the candidate rows with the codebook (uint8) from global memory.  ``log(var)`` comes
 from the host (`nary_logs`, the CPU's log) so the costs are the CPU's bit for bit.
@@ -13,6 +14,7 @@ from numba import cuda, njit
 
 from .cost import band_of, insert, mul64, pixel_of, rint, write_none, write_top3
 from ...kernels import IDX_BITS, METRIC_HARD, METRIC_ML, NO_KEY, Y_CLIP
+from ...kernels.nary import _nary_lmin
 
 TPB = 64
 #: Largest n * q of the per-pixel cost table (local memory).
@@ -25,7 +27,7 @@ _YC = int(Y_CLIP)
 
 @njit(cache=True)
 def nary_logs(white, black, has_inv, scale, q, sr2, ss2):
-    """(q, H, W) float64 log(var) of each symbol level, computed as `kernels.soft_nary` does."""
+    """(q, H, W) float64 log(var) - lmin of each symbol level, computed as `kernels.soft_nary` does."""
     h, w = white.shape
     out = np.zeros((q, h, w), np.float64)
     for yy in range(h):
@@ -33,6 +35,7 @@ def nary_logs(white, black, has_inv, scale, q, sr2, ss2):
             a = white[yy, xx] * scale
             b = black[yy, xx] * scale
             d = a - b
+            lmin = _nary_lmin(a, b, has_inv, q, sr2, ss2)
             for s in range(q):
                 frac = s / (q - 1)
                 if has_inv:
@@ -40,7 +43,7 @@ def nary_logs(white, black, has_inv, scale, q, sr2, ss2):
                 else:
                     mu = b + d * frac
                     var = sr2 + ss2 * mu
-                out[s, yy, xx] = np.log(var)
+                out[s, yy, xx] = np.log(var) - lmin
     return out
 
 
