@@ -153,6 +153,13 @@ def test_source_codes_options_are_checked(capsys):
     _fails(capsys, "source", "codes", "--table", "--lengths", "4,x", expect="--lengths expects a comma list")
     _fails(capsys, "source", "codes", "--table", "--lengths", "4,99", expect="--lengths: room families have 2 <= L")
     _fails(capsys, "source", "codes", "--table", "--lengths", "4", "--max-devices", "1", expect="--max-devices")
+    # the room options were ignored without a word outside --table / --room-family
+    _fails(capsys, "source", "codes", "1101", "--power-ratio", "2", expect="--power-ratio: options of --table")
+    _fails(capsys, "source", "codes", "--family", "2", "4", "--stream", "periodic", "--lengths", "4",
+           expect="--stream / --lengths: options of --table")
+    _fails(capsys, "source", "codes", "--room-family", "2", "4", "--max-devices", "3", expect="options of --table, not")
+    assert main(["source", "codes", "--room-family", "2", "6", "--power-ratio", "0.5"]) == 0
+    assert "each foreign device <= 0.5 x own" in capsys.readouterr().out
 
 
 def test_subscribe_and_router_check_their_arguments_first(capsys, tmp_path, monkeypatch):

@@ -20,7 +20,18 @@ def _codes(args: argparse.Namespace) -> int:
                                        ("--room-family", args.room_family)) if given]
     if len(chosen) > 1:  # the report used one of them and ignored the others
         raise ValueError(f"{' and '.join(chosen)}: give one of CODES, --family, --table and --room-family")
+    room_only = [name for name, value in (("--stream", args.stream), ("--power-ratio", args.power_ratio),
+                                          ("--lengths", args.lengths), ("--max-devices", args.max_devices))
+                 if value is not None]
+    if args.room_family and (args.lengths is not None or args.max_devices is not None):
+        raise ValueError("--lengths / --max-devices: options of --table, not of --room-family")
+    if room_only and not (args.table or args.room_family):  # the report ignored them without a word
+        raise ValueError(f"{' / '.join(room_only)}: options of --table and --room-family")
     if args.table or args.room_family:
+        for name, default in (("stream", "aperiodic"), ("power_ratio", 1.0), ("lengths", "4,6,8,10,12"),
+                              ("max_devices", 16)):
+            if getattr(args, name) is None:
+                setattr(args, name, default)
         return _room_codes(args)
     if args.family:
         n, length = args.family
@@ -106,13 +117,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "(room families, no coding, time-division)")
     c.add_argument("--room-family", nargs=2, type=int, metavar=("N", "L"),
                    help="room family of N codes of length L and its exact worst case under the sum")
-    c.add_argument("--stream", choices=("aperiodic", "periodic"), default="aperiodic",
-                   help="foreign devices send on/off symbols (aperiodic: DLP, curtains) or repeat their code "
+    c.add_argument("--stream", choices=("aperiodic", "periodic"), default=None,
+                   help="--table / --room-family: foreign devices send on/off symbols (aperiodic: DLP, curtains) or repeat their code "
                         "(periodic: dot projectors) (default aperiodic)")
-    c.add_argument("--power-ratio", type=float, default=1.0, metavar="P",
-                   help="each foreign device at most P x as bright as the own one (default 1)")
-    c.add_argument("--lengths", default="4,6,8,10,12", metavar="L,L,...", help="code lengths of --table (default %(default)s)")
-    c.add_argument("--max-devices", type=int, default=16, metavar="N", help="largest N of --table (default 16)")
+    c.add_argument("--power-ratio", type=float, default=None, metavar="P",
+                   help="--table / --room-family: each foreign device at most P x as bright as the own one (default 1)")
+    c.add_argument("--lengths", default=None, metavar="L,L,...", help="code lengths of --table (default 4,6,8,10,12)")
+    c.add_argument("--max-devices", type=int, default=None, metavar="N", help="largest N of --table (default 16)")
     c.set_defaults(func=_codes)
     e = sub.add_parser("event-demo", help="event-camera SL with an interfering dot projector")
     e.add_argument("--size", default="320x240", help="event sensor WxH (default 320x240)")
