@@ -65,6 +65,10 @@ def test_recordings_are_not_replaced_without_overwrite(capsys, tmp_path):
     assert rec.read_bytes() == before and other.read_bytes() == before
     assert profile_copy.read_text() == Path(PROFILE).read_text()
     _fails(capsys, "sim", "record", tmp_path, "--stacks", "1", "--profile", PROFILE, expect="is a directory")
+    # a file where the folder should be was named a missing folder
+    _fails(capsys, "sim", "record", rec / "sub" / "x.mcap", "--stacks", "1", "--profile", PROFILE,
+           expect=f"{rec} is a file, not a folder")
+    assert rec.read_bytes() == before
     _fails(capsys, "replay", rec, other, "--ply", tmp_path / "ply", expect="--ply replays one recording")
 
 

@@ -14,6 +14,7 @@ import os
 import threading
 import time
 from collections import deque
+from pathlib import Path
 from typing import Any
 
 from edge.io.mcap_reader import MAX_PENDING
@@ -456,6 +457,9 @@ def check_record_path(path: str | os.PathLike[str], *, overwrite: bool = False, 
         raise ValueError(f"{option} {path}: is a directory; expected a file name such as {os.path.join(path, 'run.mcap')}")
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
+        above = next((p for p in [folder, *Path(folder).parents] if os.path.lexists(p)), None)
+        if above is not None and not os.path.isdir(above):
+            raise ValueError(f"{option} {path}: {above} is a file, not a folder")
         raise ValueError(f"{option} {path}: folder {folder} does not exist")
     try:
         name_max = os.pathconf(folder, "PC_NAME_MAX")
