@@ -145,6 +145,30 @@ def test_adaptive_round2_frames_are_masked_and_counted_calibrated():
     assert r2.checked == r1.failing and r2.calibration_frames == 1
 
 
+def test_adaptive_full_scale_default_detects_12_bit_data_in_uint16():
+    # without full_scale, 12-bit data in uint16 was read at 65535 (16x darker than it is), and the
+    # calibrated contrast floor (a fraction of full scale) took a different set of pixels
+    make_scene, CameraModel = _sim()
+    from edge.sim import capture
+
+    scene = make_scene("v-groove", 96, 48, seed=0, angle_deg=30.0, albedo=0.9)
+    cam = CameraModel(bits=12)
+    assert cam.levels == 4095
+    results = []
+    for fs in (cam.levels, None):
+        scan = AdaptiveScan(EDC, int(scene.geometry.projector_width), scene.height, full_scale=fs,
+                            binarisation="calibrated", min_contrast=0.05)
+        frames = scan.start()
+        shot = capture(scene, frames, cam, rng=1, exposure=cam.frame_exposure(frames.shape[0] - 2))
+        assert shot.dtype == np.uint16 and shot.max() <= 4095
+        scan.update(shot)
+        assert scan.full_scale == 4095.0
+        results.append(scan.result())
+    assert results[0].valid.any()
+    assert np.array_equal(results[0].valid, results[1].valid)
+    assert np.array_equal(results[0].column, results[1].column)
+
+
 def test_self_calibrated_rounds_have_no_calibration_frames():
     make_scene, CameraModel = _sim()
     from edge.sim import capture

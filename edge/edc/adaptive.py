@@ -103,6 +103,7 @@ import numpy as np
 
 from edge.capture import full_scale
 from edge.codes import Code
+from edge.decode.inputs import bit_depth_of, native
 
 from . import _kernels
 from .scheme import EdcScheme, unmeasurable_columns
@@ -253,7 +254,9 @@ class AdaptiveScan:
         noise: self-calibrated mode: camera (sigma_r, sigma_s), normalised units (variance
             ``sigma_r**2 + sigma_s**2 * v`` at normalised level v).
         full_scale: camera full-scale value (255 for 8 bits, 2**bits - 1 otherwise); default from the
-            dtype of the first frames (uint8 -> 255, uint16 -> 65535, float -> 1).
+            first round's frames by `decode`'s rule (uint8 -> 255, float -> 1, uint16 -> 2**b - 1 for
+            the smallest b of 8, 10, 12, 14, 16 that holds their largest value, so 12-bit data in
+            uint16 is not read 16x darker).
         guard: keep lit the columns of passing pixels next to failing ones (see module docstring).
         disparity_band: optional (min_disparity, max_disparity) to light only candidate columns.
         neighbour_tolerance: a passing pixel needs an 8-neighbour that passed with a column within
@@ -416,7 +419,8 @@ class AdaptiveScan:
         if first:
             self._camera_shape = f.shape[1:]
             if self.full_scale is None:
-                self.full_scale = full_scale(f.dtype)  # the one full-scale rule (edge.capture)
+                # the one full-scale rule (edge.capture) at the bit depth decode() detects
+                self.full_scale = full_scale(f.dtype, bit_depth_of([("frames", native(f))], None))
             h, w = self._camera_shape
             self._column = np.full((h, w), -1, dtype=np.int32)
             self._guess = np.full((h, w), -1, dtype=np.int32)
