@@ -85,6 +85,8 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
+    if "--_child" in sys.argv:  # runs on the compared revision's edge, which may predate tool_main
+        raise SystemExit(main())
     from edge.cli import tool_main
 
     raise SystemExit(tool_main(main, __file__))
