@@ -106,6 +106,18 @@ def test_confidence_median_matches_the_naive_filter(shape, vote, stripe):
             assert np.array_equal(got_col >= 0, got_valid | ((got_col >= 0) & ~got_valid)), "column -1 or a row"
 
 
+def test_confidence_median_fills_no_prediction_before_row_0():
+    """A prediction below row 0 (neighbours' disparity larger than the pixel's x) is not filled:
+    the column is -1 as the docstring states (it was the negative prediction itself, -2 here;
+    `decode` was not affected: its valid mask sets every invalid column to -1)."""
+    col = np.array([[5, 0, 0]], np.int32)
+    conf = np.array([[0.1, 1.0, 1.0]], np.float32)
+    for columns in (None, 10):
+        got_col, got_valid = confidence_median(col, conf, np.ones((1, 3), bool), t_low=0.5, t_high=0.9, window=5,
+                                               min_votes=2, fill=True, columns=columns)
+        assert got_col.tolist() == [[-1, 0, 0]] and got_valid.tolist() == [[False, True, True]]
+
+
 # ----------------------------------------------------------------------- order_prior
 
 def _same_surface(x1, c1, x2, c2, stripe, max_slope, tol):

@@ -6,12 +6,13 @@ Disparity convention (docs/architecture.md): a pixel at camera column x decoded 
 
 * `order_prior`: list decoding with the order prior, along each image row (an epipolar line in
   the rectified setup).  *Anchors* are eligible pixels with confidence >= t_high whose disparity
-  agrees (within ``max_slope * gap + tol`` projector pixels) with the nearest other anchor on
-  its left or on its right at most `max_gap` pixels away; a high-confidence pixel that agrees
-  with neither is kept as it is but does not anchor.  A pixel with confidence < t_high whose
-  nearest anchors L (left) and R (right) are both at most `max_gap` pixels away and lie on one
-  continuous surface (their disparities agree within ``max_slope * (x_R - x_L) + tol``; this
-  implies col(L) <= col(R) when ``max_slope < 1``) takes the best-ranked of its top-3 candidates
+  agrees (within ``max_slope * gap + tol`` projector pixels) with the nearest other such pixel
+  (anchor or not) on its left or on its right at most `max_gap` pixels away; a high-confidence
+  pixel that agrees with neither is kept as it is but does not anchor.  A pixel with confidence
+  < t_high whose nearest anchors L (left) and R (right) are both at most `max_gap` pixels away
+  and lie on one continuous surface (their disparities agree within ``max_slope * (x_R - x_L) +
+  tol``, and col(L) <= col(R): with ``max_slope < 1`` the first implies it but for the slack
+  `tol`) takes the best-ranked of its top-3 candidates
   c with ``col(L) <= c <= col(R)`` and ``|c - interp| <= tol / stripe``, where interp is the
   linear interpolation of the anchor columns at x (exact for a plane: disparity is affine in
   the image of a plane); if none of the three fits, it is invalid.  Every other pixel keeps
@@ -224,7 +225,7 @@ def _conf_median(col, conf, eligible, cand, t_low, t_high, radius, min_votes, to
                         break
             elif c >= 0 and abs(c - pred) <= tol:
                 chosen = c
-            out_col[yy, xx] = chosen if chosen >= 0 else (pred if fill else -1)
+            out_col[yy, xx] = chosen if chosen >= 0 else (pred if fill and pred >= 0 else -1)
             out_valid[yy, xx] = out_col[yy, xx] >= 0
 
 
