@@ -28,7 +28,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--address", metavar="ADDR",
                    help="run the replays on the existing Ray cluster at ADDR (e.g. ray://head:10001, head:6379 "
                         "or auto), as many at once as it has CPUs; its nodes need edge installed")
-    p.add_argument("--report", metavar="REPORT.json", help="also write the per-file results as JSON")
+    p.add_argument("--report", metavar="REPORT.json", help="also write the per-file results as JSON (checked before the replays; a recording is refused, "
+                        "never overwritten)")
 
 
 def is_many(args: argparse.Namespace) -> bool:

@@ -11,9 +11,12 @@ cloud.  Outputs (each optional):
 * ``--depth``: uint16 PNG in camera pixels, Z along the camera optical axis in millimetres,
   0 = invalid (ROS REP 118 16UC1).  Needs --calibration and a layout with columns and rows.
 * ``--depth-picture``: the same depth colour-mapped for viewing (TURBO over the 1st..99th
-  percentile of the valid depths, invalid black).  Needs --calibration.
+  percentile of the valid depths, invalid black).  Needs what --depth needs.
 * ``--ply``: one vertex per pixel with depth, x y z in metres in the camera optical frame
-  (x right, y down, z forward), coloured with the white frame.
+  (x right, y down, z forward), coloured with the white frame.  Needs what --depth needs.
+
+Every output path is checked before the decode; one that names an input (a file of DIR,
+--manifest or --calibration) is refused, so the command never writes over its capture.
 """
 
 from __future__ import annotations

@@ -107,7 +107,10 @@ def _curtain_demo(args: argparse.Namespace) -> int:
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("source", help="light-source codes: families, event SL and light-curtain demos")
     sub = p.add_subparsers(dest="source_command", metavar="ACTION", required=True)
-    c = sub.add_parser("codes", help="auto/cross-correlation report of source codes or a searched family")
+    c = sub.add_parser("codes", help="auto/cross-correlation report of source codes or a searched family",
+                       description="One report per call: CODES, --family, --table or --room-family (default: CODES "
+                                   "1100 0101). --stream and --power-ratio go with --table and --room-family, "
+                                   "--lengths and --max-devices with --table; elsewhere they are refused.")
     c.add_argument("codes", nargs="*", help=f"bit strings or paper names ({', '.join(PAPER_CODES)})")
     c.add_argument("--family", nargs=2, type=int, metavar=("N", "L"), help="search N codes of length L")
     c.add_argument("--kind", choices=("frame", "event"), default="frame",
