@@ -261,3 +261,21 @@ def test_replay_of_one_recording_shows_progress(capsys, monkeypatch):
     assert main(["replay", str(DATA / "sim-small.mcap")]) == 0
     assert "bit for bit" in capsys.readouterr().out
     assert len(bars) == 1 and bars[0].total == 3 and bars[0].n == 3 and bars[0].closed
+
+
+def test_progress_bars_only_on_a_terminal_and_replay_usage(capsys, tmp_path):
+    """`edge sim record`'s bar wrote tqdm's carriage-return lines into a redirected stderr (a log
+    file, CI); like the replay bar it now shows only on a terminal.  `edge replay` with no file
+    named its two positionals 'FILE, FILE' as required."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "rec.mcap"
+    r = subprocess.run([sys.executable, "-m", "edge.cli", "sim", "record", str(out), "--stacks", "2",
+                        "--profile", PROFILE], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and out.exists(), r.stderr
+    assert "\r" not in r.stderr and "stack/s" not in r.stderr and "it/s" not in r.stderr
+    with pytest.raises(SystemExit) as exc:
+        main(["replay"])
+    assert exc.value.code == 2
+    assert capsys.readouterr().err.strip().endswith("the following arguments are required: FILE")

@@ -19,7 +19,7 @@ from ._args import check_output_file
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("more", nargs="*", metavar="FILE",
+    p.add_argument("more", nargs="*", metavar="MORE", default=[],  # a default: not named as required
                    help="more recordings; FILE and these may also be directories (their *.mcap) or glob "
                         "patterns such as 'recs/*.mcap': then every file is replayed and one table printed")
     p.add_argument("--workers", type=int, metavar="N",

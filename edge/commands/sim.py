@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from typing import Any
 
 
@@ -46,7 +47,7 @@ def record_simulation(out: str, profile, stacks: int, *, first_stack: int = 0, o
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=stacks, unit="stack")
+        bar = tqdm(total=stacks, unit="stack", file=sys.stderr, disable=None)  # None: only on a terminal
     with EdgeRecorder(out, profile, sensor_metadata=sensor.info.metadata) as rec:
         sensor.start()
         try:
