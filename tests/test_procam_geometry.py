@@ -153,3 +153,9 @@ def test_bad_output_paths_are_one_line_errors(rig, tmp_path, capsys):
         assert main(base + ["--max-error", bad, "--depth", str(tmp_path / "d.png")]) == 2
         assert f"--max-error: expected a reprojection error > 0 px, got {float(bad)}" in capsys.readouterr().err
     assert not (tmp_path / "d.png").exists()
+    # an image written into an OpenCV capture's folder became one of its images: the next decode of
+    # the folder failed ("expected 42 images, got 44")
+    images = sorted(p.name for p in rig["cap"].iterdir())
+    assert main(base + ["--out", str(rig["cap"] / "col.png")]) == 2
+    assert "would become one of its images" in capsys.readouterr().err
+    assert sorted(p.name for p in rig["cap"].iterdir()) == images

@@ -30,7 +30,7 @@ import cv2
 import numpy as np
 
 from ..decode import METHODS
-from ..decode.layouts import LAYOUTS, decode_axes, load
+from ..decode.layouts import LAYOUTS, decode_axes, is_capture_image, load, resolve_layout
 from ..decode.procam import DISAGREE_PX, estimate_step, read_calibration, reconstruct
 from ..io.ply import write_ply
 from ._args import check_output_file, parse_size
@@ -124,6 +124,8 @@ def _check_outputs(args: argparse.Namespace) -> None:
     folder = Path(args.directory)
     inputs = [p for p in folder.iterdir() if p.is_file()] if folder.is_dir() else []
     inputs += [Path(p) for p in (args.manifest, args.calibration) if p is not None and os.path.isfile(p)]
+    manifest = args.manifest
+    every_image = folder.is_dir() and resolve_layout(folder, args.layout, manifest) == "opencv-graycode"
     for option, path in outputs:
         if path is None:
             continue
@@ -135,6 +137,10 @@ def _check_outputs(args: argparse.Namespace) -> None:
         if os.path.exists(path) and any(os.path.samefile(path, p) for p in inputs):
             raise ValueError(f"{option} {path} is an input of this command (the capture in {args.directory}, "
                              f"--manifest or --calibration); write to another file")
+        if (every_image and is_capture_image(path) and os.path.isdir(os.path.dirname(os.path.abspath(path)))
+                and os.path.samefile(os.path.dirname(os.path.abspath(path)), folder)):
+            raise ValueError(f"{option} {path}: an image in the capture folder {args.directory} would become one "
+                             f"of its images (the opencv-graycode layout reads every image there); write it elsewhere")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -105,7 +105,7 @@ def load_opencv_graycode(directory: str | Path, projector: tuple[int, int] = (10
         raise ValueError(f"capture directory {d} is a file; expected the folder of the capture's images")
     if not d.is_dir():
         raise FileNotFoundError(f"capture directory not found: {d}")
-    files = sorted(p for p in d.iterdir() if p.suffix.lower() in _IMAGE_SUFFIXES)
+    files = sorted(p for p in d.iterdir() if is_capture_image(p))
     pw, ph = projector
     col_bits = math.ceil(math.log2(pw))
     row_bits = math.ceil(math.log2(ph))
@@ -177,10 +177,23 @@ def load_manifest(directory: str | Path, manifest: str | Path | None = None) -> 
     return LayoutCapture(axes=axes, white=white, black=black, stripe=spec.stripe, layout="manifest")
 
 
+def resolve_layout(directory: str | Path, layout: str, manifest: str | Path | None = None) -> str:
+    """The layout `load` reads ``directory`` as: ``layout``, or for "auto" "manifest" where a
+    manifest is given or the directory holds one, else "opencv-graycode" (which reads every image
+    of the directory, `is_capture_image`)."""
+    if layout == "auto":
+        return "manifest" if manifest is not None or (Path(directory) / MANIFEST).is_file() else "opencv-graycode"
+    return layout
+
+
+def is_capture_image(path: str | Path) -> bool:
+    """Whether the opencv-graycode layout takes a file of its directory for one of the capture's images."""
+    return Path(path).suffix.lower() in _IMAGE_SUFFIXES
+
+
 def load(directory: str | Path, layout: str, projector: tuple[int, int], manifest: str | Path | None = None) -> LayoutCapture:
     """Load a capture in one of `LAYOUTS` (projector: the OpenCV Gray-code grid, see above)."""
-    if layout == "auto":
-        layout = "manifest" if manifest is not None or (Path(directory) / MANIFEST).is_file() else "opencv-graycode"
+    layout = resolve_layout(directory, layout, manifest)
     if layout == "opencv-graycode":
         return load_opencv_graycode(directory, projector)
     if layout == "manifest":
