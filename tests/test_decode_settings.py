@@ -18,7 +18,9 @@ from edge.profiles import load_profile
 def test_bad_values_name_the_field():
     for kw, name in (({"method": "best"}, "method"), ({"sigma_r": 0.0}, "sigma_r"),
                      ({"t_low": 0.5, "t_high": 0.2}, "t_low"), ({"backend": "tpu"}, "backend"),
-                     ({"min_contrast": float("nan")}, "min_contrast"), ({"spatial_check": 1}, "spatial_check")):
+                     ({"min_contrast": float("nan")}, "min_contrast"), ({"spatial_check": 1}, "spatial_check"),
+                     # a huge sigma overflowed its square (OverflowError from inside decode, found by the full fuzz)
+                     ({"sigma_s": 4.3e250}, "sigma_s <= 10"), ({"sigma_r": 11.0}, "sigma_r <= 10")):
         with pytest.raises(ValueError, match=name):
             DecodeSettings(**kw)
     with pytest.raises(ValueError, match="unknown option.*colour"):

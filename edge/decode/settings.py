@@ -23,7 +23,7 @@ Fields (units: normalised intensity, 1 = full scale of the frame dtype):
 * ``max_error`` in (0, 1): the error-probability target of the "error" rule (default 0.01: at
   most about 1 in 100 published columns off by more than one codebook row); method "sgm" uses
   it under either rule (`edge.decode.sgm`).
-* ``sigma_r`` > 0, ``sigma_s`` >= 0: read + quantisation sigma and shot-noise coefficient
+* 0 < ``sigma_r`` <= `MAX_SIGMA`, 0 <= ``sigma_s`` <= `MAX_SIGMA`: read + quantisation sigma and shot-noise coefficient
   (variance = sigma_r**2 + sigma_s**2 * I) of the search; under the "error" rule a prior only
   (the rule fits the noise model from the capture's residuals).
 * ``min_contrast``: white - black floor; ``min_confidence``: (d2 - d1)/d2 floor (the
@@ -50,6 +50,9 @@ METHODS = ("hard", "soft", "list", "median", "list+median", "sgm")
 METRIC_NAMES = ("ml", "normalized")
 LEVELS = ("auto", "calibration", "refit")
 VALIDITY = ("auto", "error", "confidence")
+#: Largest sigma_r / sigma_s (normalised units, 1 = full scale): noise ten times the full scale
+#: means no signal, and a larger value overflows the variance's square in float64.
+MAX_SIGMA = 10.0
 
 
 @dataclass(frozen=True)
@@ -80,8 +83,9 @@ class DecodeSettings:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ValueError(f"{name}: expected a finite number, got {v!r}")
-        if not (self.sigma_r > 0 and self.sigma_s >= 0):
-            raise ValueError(f"sigma_r, sigma_s: expected sigma_r > 0 and sigma_s >= 0, got {self.sigma_r}, {self.sigma_s}")
+        if not (0 < self.sigma_r <= MAX_SIGMA and 0 <= self.sigma_s <= MAX_SIGMA):
+            raise ValueError(f"sigma_r, sigma_s: expected 0 < sigma_r <= {MAX_SIGMA:g} and 0 <= sigma_s <= {MAX_SIGMA:g} "
+                             f"(normalised units, 1 = full scale), got {self.sigma_r}, {self.sigma_s}")
         if not (0 <= self.t_low <= self.t_high <= 1):
             raise ValueError(f"t_low, t_high: expected 0 <= t_low <= t_high <= 1, got {self.t_low}, {self.t_high}")
         if not 0 < self.max_error < 1:
@@ -108,9 +112,11 @@ class DecodeSettings:
         of a q-ary code runs on the calibration levels, not on the two-level split
         (`level_source`): on q-ary captures at fixed total exposure (tools/eval_nary.py, both
         generators, sigma_s 0.01-0.04) the split throws the search off (nary8-3: 99-100 % of lit
-        pixels wrong or unpublished at sigma_s 0.01) and the confidence rule errs on 16-100 %,
-        while the error rule on the calibration levels is the best of the three on every code
-        and noise level measured (nary8-3 at sigma_s 0.01: 16-25 %; docs/results/nary)."""
+        pixels wrong or unpublished at sigma_s 0.01), while the error rule on the calibration
+        levels is the best error-rule variant on every code and noise level measured (nary8-3 at
+        sigma_s 0.01: 13-23 %; docs/results/nary).  The confidence rule publishes more of the
+        noisiest q-ary captures and errs less there, but mostly 2-9x more of what it publishes is
+        wrong and it has no error target."""
         if self.validity == "error":
             return "error"
         if self.validity == "confidence" or has_inverse or self.method == "hard":
