@@ -26,7 +26,7 @@ Fields (units: normalised intensity, 1 = full scale of the frame dtype):
 * 0 < ``sigma_r`` <= `MAX_SIGMA`, 0 <= ``sigma_s`` <= `MAX_SIGMA`: read + quantisation sigma and shot-noise coefficient
   (variance = sigma_r**2 + sigma_s**2 * I) of the search; under the "error" rule a prior only
   (the rule fits the noise model from the capture's residuals).
-* ``min_contrast``: white - black floor; ``min_confidence``: (d2 - d1)/d2 floor (the
+* ``min_contrast`` in [0, 1]: white - black floor; ``min_confidence`` in [0, 1]: (d2 - d1)/d2 floor (the
   "confidence" rule; the "error" rule has no contrast floor: contrast enters the error
   probability in noise sigmas).
 * ``t_low`` <= ``t_high`` in [0, 1]: spatial-check thresholds (voters / anchors >= t_high; below
@@ -86,6 +86,9 @@ class DecodeSettings:
         if not (0 < self.sigma_r <= MAX_SIGMA and 0 <= self.sigma_s <= MAX_SIGMA):
             raise ValueError(f"sigma_r, sigma_s: expected 0 < sigma_r <= {MAX_SIGMA:g} and 0 <= sigma_s <= {MAX_SIGMA:g} "
                              f"(normalised units, 1 = full scale), got {self.sigma_r}, {self.sigma_s}")
+        for name in ("min_contrast", "min_confidence"):  # a contrast (normalised) and a ratio: [0, 1]
+            if not 0 <= getattr(self, name) <= 1:
+                raise ValueError(f"{name}: expected 0..1, got {getattr(self, name)}")
         if not (0 <= self.t_low <= self.t_high <= 1):
             raise ValueError(f"t_low, t_high: expected 0 <= t_low <= t_high <= 1, got {self.t_low}, {self.t_high}")
         if not 0 < self.max_error < 1:
