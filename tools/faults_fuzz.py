@@ -33,6 +33,7 @@ import socket
 import sys
 import tempfile
 import time
+import traceback
 import tracemalloc
 from collections import Counter
 from pathlib import Path
@@ -436,8 +437,14 @@ def _run(fn: Callable[[Counter], None]) -> tuple[Counter, str]:
     tally: Counter = Counter()
     try:
         fn(tally)
+    except KeyboardInterrupt:
+        raise
     except BaseException as exc:  # noqa: BLE001 - hypothesis re-raises the shrunk failure
-        return tally, f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
+        # the whole report on stderr: hypothesis' notes hold each falsifying example (and the blob
+        # that reproduces it with @reproduce_failure), which the table row cannot
+        traceback.print_exception(exc, file=sys.stderr)
+        parts = exc.exceptions if isinstance(exc, BaseExceptionGroup) else (exc,)
+        return tally, "; ".join(f"{type(e).__name__}: {' '.join(str(e).split())[:200]}" for e in parts)
     return tally, ""
 
 
