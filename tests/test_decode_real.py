@@ -78,6 +78,7 @@ def test_cli_writes_pngs(tmp_path):
 
 
 def test_cli_bad_directory(tmp_path):
-    res = subprocess.run([sys.executable, "-m", "edge.cli", "decode-images", str(tmp_path), "--out",
+    (tmp_path / "empty").mkdir()
+    res = subprocess.run([sys.executable, "-m", "edge.cli", "decode-images", str(tmp_path / "empty"), "--out",
                           str(tmp_path / "c.png")], capture_output=True, text=True, cwd=REPO)
     assert res.returncode == 2 and "expected 42 images" in res.stderr
