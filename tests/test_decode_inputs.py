@@ -9,9 +9,8 @@ import pytest
 from edge.capture import CodedCapture, full_scale
 from edge.codes import get_code
 from edge.decode import DecodeSettings, check, contrast_error_map, decode, decode_capture, decode_refined, error_map
-from edge.decode.backends import cpu as cpu_backend
 from edge.decode.inputs import validate
-from edge.decode.kernels import LANES, METRIC_ML
+from edge.decode.kernels import LANES
 from edge.decode.synthetic import make_capture
 
 FIELDS = ("column", "confidence", "valid", "candidates", "distances", "error")
@@ -37,26 +36,25 @@ def _same(a, b) -> None:
         assert (x is None and y is None) or np.array_equal(x, y, equal_nan=True), f
 
 
-@pytest.mark.parametrize("dtype", [np.uint16, np.float32, np.float64])
+@pytest.mark.parametrize("dtype", [np.uint16, np.float32])
 def test_other_byte_order_decodes_like_native(dtype):
     """A big-endian capture (``>u2`` from a file or a camera SDK) decodes to the same arrays as
-    its native copy on every search path and rule; it was refused as "expected dtype uint16,
-    got >u2"."""
+    its native copy; it was refused as "expected dtype uint16, got >u2".  `validate` hands every
+    backend and search path the native copy (checked here), so the paths need no run of their
+    own on swapped input (each would compile its kernels once more for nothing: minutes on a
+    cold 2-core CI machine)."""
     cap = _capture("ecc-22-10", dtype=dtype, bit_depth=12 if dtype == np.uint16 else None)
     code = cap.code
     fr, wh, bl = _swapped(cap.frames), _swapped(cap.white), _swapped(cap.black)
     assert not fr.dtype.isnative and np.array_equal(fr, cap.frames)
-    for kw in ({}, {"validity": "confidence"}, {"min_disparity": -60, "max_disparity": -30}, {"method": "hard"},
-               {"method": "sgm"}):
-        _same(decode(fr, wh, bl, code, **kw), decode(cap.frames, cap.white, cap.black, code, **kw))
-    # every exact search path on the validated stacks
     st, native = validate(fr, wh, bl, code), validate(cap.frames, cap.white, cap.black, code)
-    assert st.frames.dtype == native.frames.dtype and st.scale == native.scale
-    for path, band in (("scalar", (False, 0, 0)), ("lanes", (False, 0, 0)), ("band", (True, -60, -30)),
-                       ("band-scan", (True, -60, -30))):
-        kw = dict(metric=METRIC_ML, sigma_r=0.01, sigma_s=0.03, columns=code.size, band=band, stripe=1, path=path)
-        for a, b in zip(cpu_backend.search(st, code, **kw)[:3], cpu_backend.search(native, code, **kw)[:3]):
-            np.testing.assert_array_equal(a, b, err_msg=path)
+    for a, b in ((st.frames, native.frames), (st.white, native.white), (st.black, native.black)):
+        assert a.dtype == b.dtype and a.dtype.isnative and a.flags.c_contiguous and np.array_equal(a, b)
+    assert st.scale == native.scale and st.bits == native.bits
+    settings = ({}, {"validity": "confidence"}, {"min_disparity": -60, "max_disparity": -30}, {"method": "hard"},
+                {"method": "sgm"}) if dtype == np.uint16 else ({},)
+    for kw in settings:
+        _same(decode(fr, wh, bl, code, **kw), decode(cap.frames, cap.white, cap.black, code, **kw))
     assert np.array_equal(check(fr, wh, bl, code), check(cap.frames, cap.white, cap.black, code))
     assert np.array_equal(contrast_error_map(wh, bl, 0.05), contrast_error_map(cap.white, cap.black, 0.05))
     assert full_scale(np.dtype(">u2"), 12) == full_scale(np.uint16, 12) == 4095.0
