@@ -17,7 +17,8 @@ Units:
 * frame_exposure: (n + 2,) float64 exposure of code frames 0 .. n-1, then white, then black, in
   ``exposure_unit``: ``"us"`` (microseconds, device frames: `edge.sensors.base.Frame.exposure_us`)
   or ``"relative"`` (the simulator's `edge.sim.CameraModel` units, where light is linear in it).
-  None where the source does not say (image files).  A threshold that compares a code frame with
+  Finite and >= 0; 0 for a frame whose source did not say (a recording's frames), None where
+  the source says nothing (image files).  A threshold that compares a code frame with
   white / black scales by ``exposure_ratio`` (the frame's exposure over the white frame's).
 * noise: read / shot noise in normalised units (variance ``sigma_r**2 + sigma_s**2 * I``), or
   None when unknown.
@@ -117,6 +118,8 @@ class CodedCapture:
             if e.shape != (n + 2,):
                 raise ValueError(f"frame_exposure: expected {n + 2} values (n code frames, white, black), "
                                  f"got {e.size}")
+            if not np.all(np.isfinite(e) & (e >= 0)):
+                raise ValueError(f"frame_exposure: expected finite exposures >= 0 (0 = not known), got {e.tolist()}")
             e.setflags(write=False)
             object.__setattr__(self, "frame_exposure", e)
 
@@ -164,8 +167,9 @@ class CodedCapture:
 
     @property
     def exposure_ratio(self) -> np.ndarray | None:
-        """(n,) float64 exposure of each code frame over the white frame's (1.0 = same), or None."""
-        if self.frame_exposure is None:
+        """(n,) float64 exposure of each code frame over the white frame's (1.0 = same), or None
+        where the exposures are not known (none given, or the white frame's is 0)."""
+        if self.frame_exposure is None or not self.frame_exposure[self.n] > 0:
             return None
         return self.frame_exposure[: self.n] / self.frame_exposure[self.n]
 

@@ -59,6 +59,12 @@ def test_coded_capture_fields_and_validation():
     assert cap.exposure == 2.0 and np.array_equal(cap.exposure_ratio, np.ones(code.n))
     with pytest.raises(ValueError, match="frame_exposure: expected 12 values"):
         CodedCapture(f, w, b, frame_exposure=[1.0] * code.n)
+    # NaN / negative exposures made exposure_ratio NaN or negative; 0 means "not known" (recordings)
+    for bad in (np.nan, -1.0, np.inf):
+        with pytest.raises(ValueError, match="frame_exposure: expected finite exposures >= 0"):
+            CodedCapture(f, w, b, frame_exposure=[1.0] * code.n + [bad, 1.0])
+    unknown = CodedCapture(f, w, b, frame_exposure=np.zeros(code.n + 2))
+    assert unknown.exposure == 0.0 and unknown.exposure_ratio is None
     with pytest.raises(ValueError, match="exposure_unit"):
         CodedCapture(f, w, b, exposure_unit="ms")
     with pytest.raises(ValueError, match="does not carry"):
