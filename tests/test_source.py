@@ -259,6 +259,12 @@ def test_event_and_window_bad_inputs_raise_one_clear_value_error():
         simulate_events(np.ones((2, 2, 2)), np.array([0, 10]), sen, rng=np.random.default_rng(0), end_us=5)
     with pytest.raises(ValueError, match="structured array"):
         list(event_slices(np.zeros(3), 5))
+    # a start after the first event dropped the events before it without a word
+    timed = np.zeros(3, dtype=ev.dtype)
+    timed["t"] = [100, 200, 300]
+    with pytest.raises(ValueError, match="start_us 150 is after the first event"):
+        list(event_slices(timed, 100, start_us=150))
+    assert sum(p.size for p in event_slices(timed, 100, start_us=50)) == 3
     for f in (filter_events, filter_events_numpy):
         with pytest.raises(ValueError, match="threshold"):
             f(ev, c, width=2, height=1, slot_us=10, threshold=2.0)

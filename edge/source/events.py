@@ -190,7 +190,9 @@ def simulate_events(
 
 def event_slices(events: np.ndarray, slice_us: int, *, start_us: int | None = None) -> Iterator[np.ndarray]:
     """Yield consecutive time slices [start + k*slice_us, start + (k+1)*slice_us) of a time-ordered
-    event array (views; empty slices are yielded too, so the caller's clock keeps running)."""
+    event array (views; empty slices are yielded too, so the caller's clock keeps running).
+    start_us: the first slice's start (default the first event's time), at or before the first
+    event (ValueError otherwise: the events before it would fall in no slice)."""
     if slice_us < 1:
         raise ValueError(f"slice_us must be >= 1, got {slice_us}")
     check_events(events)
@@ -198,6 +200,9 @@ def event_slices(events: np.ndarray, slice_us: int, *, start_us: int | None = No
         return
     t = events["t"]
     start = int(t[0]) if start_us is None else int(start_us)
+    if start > int(t[0]):
+        raise ValueError(f"start_us {start} is after the first event (t = {int(t[0])} us): the events before it "
+                         f"would be in no slice; slice the array first to leave them out")
     edges = np.arange(start, int(t[-1]) + slice_us + 1, slice_us, dtype=np.int64)
     idx = np.searchsorted(t, edges, side="left")
     for a, b in zip(idx[:-1], idx[1:]):
