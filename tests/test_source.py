@@ -48,6 +48,28 @@ def test_family_codes_are_distinct_necklaces_with_low_worst_case(n, length):
     assert worst < 0.85
 
 
+def test_family_warns_when_its_search_stops_short(monkeypatch):
+    """The clique search's step budget ran out without a word: family() then took a larger
+    threshold, a worse family than its docstring promises.  It now says so."""
+    import warnings
+
+    import edge.codes.source as source
+
+    best = family.__wrapped__(4, 8)
+    monkeypatch.setattr(source, "CLIQUE_STEPS", 5)
+    with pytest.warns(RuntimeWarning, match=r"family\(4, 8\): the code search stopped after 5 steps"):
+        short = family.__wrapped__(4, 8)
+    monkeypatch.setattr(source, "CLIQUE_STEPS", 2)
+    with pytest.raises(ValueError, match="no family of 4 codes of length 8 found .the search stopped after 2 steps"):
+        family.__wrapped__(4, 8)
+    monkeypatch.setattr(source, "CLIQUE_STEPS", 200_000)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert family.__wrapped__(4, 8) == best
+    worst = lambda codes: max(worst_interference(a, b, fractions=2) for a in codes for b in codes if a is not b)
+    assert worst(short) >= worst(best)
+
+
 def test_spread_dark_and_complement():
     c = source_code("1101")
     frames = np.array([[1, 0]], np.uint8) * 255

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import warnings
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
@@ -283,10 +284,15 @@ def worst_interference_matrix(codes: Sequence[SourceCode], kind: str = "frame", 
     return m
 
 
-def _clique(adj: np.ndarray, size: int, order: np.ndarray) -> list[int] | None:
-    """Find a clique of ``size`` vertices in a boolean adjacency matrix (small backtracking search)."""
+#: Steps of `_clique`'s backtracking search at most (per threshold of `family`).
+CLIQUE_STEPS = 200_000
+
+
+def _clique(adj: np.ndarray, size: int, order: np.ndarray) -> tuple[list[int] | None, bool]:
+    """(a clique of ``size`` vertices in a boolean adjacency matrix or None, whether the search
+    stopped at `CLIQUE_STEPS` first: then None does not mean there is none)."""
     best: list[int] | None = None
-    budget = [200_000]
+    budget = [CLIQUE_STEPS]
 
     def grow(chosen: list[int], cand: list[int]) -> bool:
         nonlocal best
@@ -303,7 +309,7 @@ def _clique(adj: np.ndarray, size: int, order: np.ndarray) -> list[int] | None:
         return False
 
     grow([], [int(v) for v in order])
-    return best
+    return best, best is None and budget[0] <= 0
 
 
 @functools.lru_cache(maxsize=64)
@@ -314,6 +320,9 @@ def family(n_devices: int, length: int, kind: str = "frame") -> tuple[SourceCode
     correlate perfectly at some phase), then the smallest threshold tau for which N codes exist whose
     pairwise `worst_interference` (both directions, every on/off order, integer and half-slot offsets;
     ties broken by the integer-offset worst case) is <= tau.  Ties prefer balanced codes (weight L/2) and lower autocorrelation sidelobes.  L <= `MAX_SEARCH_LENGTH`.
+    The search for N such codes at a threshold takes at most `CLIQUE_STEPS` steps; where it stops
+    there first, the next threshold is tried and a RuntimeWarning says the family may not be the
+    best one.
     """
     if n_devices < 1:
         raise ValueError(f"n_devices must be >= 1, got {n_devices}")
@@ -336,13 +345,21 @@ def family(n_devices: int, length: int, kind: str = "frame") -> tuple[SourceCode
         return (SourceCode(cands[int(order[0])].bits, f"family-1x{length}-0"),)
     levels = np.unique(pair[np.isfinite(pair)])
     chosen = None
+    cut_short: list[float] = []
     for tau in levels:
         adj = pair <= tau + 1e-9
-        chosen = _clique(adj, n_devices, order)
+        chosen, stopped = _clique(adj, n_devices, order)
         if chosen is not None:
             break
+        if stopped:
+            cut_short.append(float(tau))
     if chosen is None:
-        raise ValueError(f"no family of {n_devices} codes of length {length} found")
+        stop = f" (the search stopped after {CLIQUE_STEPS} steps at {len(cut_short)} thresholds)" if cut_short else ""
+        raise ValueError(f"no family of {n_devices} codes of length {length} found{stop}")
+    if cut_short:
+        warnings.warn(f"family({n_devices}, {length}): the code search stopped after {CLIQUE_STEPS} steps at "
+                      f"threshold {cut_short[0]:.3f}; the family found (threshold {float(tau):.3f}) may not have "
+                      f"the smallest worst interference", RuntimeWarning, stacklevel=2)
     return tuple(SourceCode(cands[i].bits, f"family-{n_devices}x{length}-{r}") for r, i in enumerate(chosen))
 
 
