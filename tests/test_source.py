@@ -48,7 +48,7 @@ def test_family_codes_are_distinct_necklaces_with_low_worst_case(n, length):
     assert worst < 0.85
 
 
-def test_family_warns_when_its_search_stops_short(monkeypatch):
+def test_family_warns_when_its_search_stops_short(monkeypatch, capsys):
     """The clique search's step budget ran out without a word: family() then took a larger
     threshold, a worse family than its docstring promises.  It now says so."""
     import warnings
@@ -59,6 +59,13 @@ def test_family_warns_when_its_search_stops_short(monkeypatch):
     monkeypatch.setattr(source, "CLIQUE_STEPS", 5)
     with pytest.warns(RuntimeWarning, match=r"family\(4, 8\): the code search stopped after 5 steps"):
         short = family.__wrapped__(4, 8)
+    from edge.cli import main  # the command prints it as one warning line
+
+    family.cache_clear()
+    assert main(["source", "codes", "--family", "4", "8"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("edge source codes: warning: family(4, 8): the code search stopped")
+    family.cache_clear()
     monkeypatch.setattr(source, "CLIQUE_STEPS", 2)
     with pytest.raises(ValueError, match="no family of 4 codes of length 8 found .the search stopped after 2 steps"):
         family.__wrapped__(4, 8)

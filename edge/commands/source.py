@@ -8,6 +8,8 @@
 from __future__ import annotations
 
 import argparse
+import sys
+import warnings
 
 from ._args import parse_size
 
@@ -35,7 +37,11 @@ def _codes(args: argparse.Namespace) -> int:
         return _room_codes(args)
     if args.family:
         n, length = args.family
-        codes = list(family(n, length, args.kind))
+        with warnings.catch_warnings(record=True) as caught:  # the search's stop, as one line
+            warnings.simplefilter("always", RuntimeWarning)
+            codes = list(family(n, length, args.kind))
+        for w in caught:
+            print(f"edge source codes: warning: {w.message}", file=sys.stderr)
     else:
         codes = [source_code(c) for c in (args.codes or ["1100", "0101"])]
     print(correlation_report(codes, args.kind))
