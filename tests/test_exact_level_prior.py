@@ -19,7 +19,8 @@ here from the module docstring (plain numpy / python, none of the module's helpe
   not used);
 * `contrast_edges`: the tail's u-cell of a contrast (the count of edges at or below ``max(c,
   C_FLOOR)``, less one) is the reference cell of u, exactly on the dyadic priors and up to
-  rounding at the edges on the real one.
+  rounding at the edges on the real one;
+* levels whose w is not a number (an infinite off level) are off the grid: the `outside` cost.
 """
 
 from __future__ import annotations
@@ -207,3 +208,12 @@ def test_contrast_edges_count_to_the_reference_cell_on_a_real_prior():
     flat = kernel_args(None)
     assert flat[6] is False
 
+
+def test_levels_without_a_w_are_off_the_grid():
+    """An infinite off level has w = inf / inf (not a number): no cell holds it."""
+    rng = np.random.default_rng(4)
+    prior = LevelPrior(rng.uniform(0.0, 20.0, (GRID, GRID)), -8.0, 0.125, 0.0, 1.0 / 64.0, 50.0, 1000)
+    args = kernel_args(prior)
+    for k in range(-8, 0):
+        assert _reference_cost(*args[:6], math.inf, 10.0 ** k) == (prior.outside, None)
+        assert cost_at(*args[:6], math.inf, 10.0 ** k) == prior.outside, k

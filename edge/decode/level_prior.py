@@ -12,8 +12,8 @@ and each candidate's ``-2 log-likelihood L_k`` gets ``-2 log p(b_k, c_k)`` added
 approximation of marginalising the levels under p (the Hessian term, the same for every
 codeword up to the log of the ratio of its counts of ones and zeros, O(0.1), is left out).
 
-The estimate.  Coordinates ``u = log10(max(c, C_FLOOR))`` (contrast spans decades) and
-``w = b' / (b' + c)`` with ``b' = max(b, 0)`` (the off level's share of the on level, 0..1), in
+The estimate.  Coordinates ``u = log10(c')`` (contrast spans decades) and ``w = b' / (b' + c')``
+(the off level's share of the on level, 0..1), ``b' = max(b, 0)``, ``c' = max(c, C_FLOOR)``, in
 which the density is taken, not in (b, c) (the Jacobian between the two also varies by O(0.1)
 between a pixel's candidates).  A binned Gaussian kernel density estimate (Wand 1994): the
 sample's histogram on a `GRID` x `GRID` grid spanning its range widened by `REACH` bandwidths,
@@ -152,6 +152,6 @@ def cost_at(table, u0, du, w0, dw, outside, b, c):
     cp = c if c > C_FLOOR else C_FLOOR
     fu = np.floor((np.log10(cp) - u0) / du)
     fw = np.floor((bp / (bp + cp) - w0) / dw)
-    if fu < 0.0 or fu >= table.shape[0] or fw < 0.0 or fw >= table.shape[1]:
+    if not (fu >= 0.0 and fu < table.shape[0] and fw >= 0.0 and fw < table.shape[1]):  # NaN (b = inf): off
         return outside
     return table[int(fu), int(fw)]
