@@ -1449,11 +1449,13 @@ def not_lit_probability(gain: np.ndarray, code: Code, rows: int, *, inverse: boo
     to; inverse: whether the capture had inverse frames (the null law of 2n + 2 samples).
     Two-group model (a local false-discovery rate): the pixels of this capture are a mixture
     of "not lit" pixels, whose gain follows the known null law S0 (`_null`), and lit ones.  With
-    ``u = sqrt(gain)`` in bins of `GAIN_BIN`, ``P(not lit | u in bin) = pi0 * N * P0(bin) /
-    count(bin)`` (clipped to 1, then made non-increasing in u), where N is the number of pixels
-    and pi0 the fraction of not-lit pixels, estimated as ``#(gain < null median) / (N / 2)``
-    (Storey's estimator at lambda = 1/2, at most 1).  Nothing is assumed about the scene: the
-    share of shadow pixels comes from the capture.
+    ``u = sqrt(max(gain, 0))`` in bins of `GAIN_BIN`, ``P(not lit | u in bin) = pi0 * N * P0(bin) /
+    max(count(bin), 1)`` (an empty bin counts one pixel; clipped to 1, then made non-increasing in
+    u; the last bin of `gain_bins`, past the null's reach, 0), where N is the number of pixels
+    with a finite gain and pi0 the fraction of not-lit pixels, estimated as ``#(gain < null
+    median) / (N / 2)`` (Storey's estimator at lambda = 1/2, at most 1).  A gain that is not
+    finite: 0.  Nothing is assumed about the scene: the share of shadow pixels comes from the
+    capture.
     """
     ok = np.isfinite(gain)
     out = np.zeros(gain.shape, np.float64)
