@@ -247,6 +247,38 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
          f"prior {use}, pixels with a tail mass {tails}/{h * w}")
 
 
+def _prior_lookup(ptab, pu0, pdu, pw0, pdw, pout, bs, cs, out):
+    """`check_prior_cost`'s kernel (compiled there): one (b, c) pair per thread."""
+    i = cuda.grid(1)  # noqa: F821 - a global set by check_prior_cost
+    if i < out.size:
+        out[i] = post_k._prior_cost(ptab, pu0, pdu, pw0, pdw, pout, bs[i], cs[i])  # noqa: F821
+
+
+def check_prior_cost(name):
+    """The device's level-prior lookup (`backends.cuda.posterior._prior_cost`) against the CPU's
+    `level_prior.cost_at` on levels at, inside and off the grid, at C_FLOOR, and not finite
+    (b or c = inf, NaN: off the grid on both): equal bit for bit."""
+    global cuda, post_k  # the kernel's globals (the simulator swaps a kernel's global `cuda`)
+    from numba import cuda
+
+    from edge.decode.backends.cuda import posterior as post_k
+    from edge.decode.level_prior import C_FLOOR, cost_at, kernel_args, level_prior
+
+    rng = np.random.default_rng(3)
+    prior = level_prior(rng.uniform(0.0, 0.1, 4000), rng.uniform(0.0, 0.6, 4000))
+    ptab, pu0, pdu, pw0, pdw, pout, _, _ = kernel_args(prior)
+    b = np.concatenate([rng.uniform(-0.05, 0.2, 200), [0.0, 0.05, np.inf, 0.05, np.nan, 0.0, 1e300]])
+    c = np.concatenate([10.0 ** rng.uniform(-4.0, 0.5, 200), [C_FLOOR, 0.0, 0.3, np.inf, 0.3, np.nan, 1e-300]])
+    ref = np.array([cost_at(ptab, pu0, pdu, pw0, pdw, pout, bi, ci) for bi, ci in zip(b, c)])
+
+    out = cuda.device_array(b.size, np.float64)
+    cuda.jit(_prior_lookup)[(b.size + 63) // 64, 64](cuda.to_device(np.ascontiguousarray(ptab)), pu0, pdu, pw0, pdw,
+                                                     pout, cuda.to_device(b), cuda.to_device(c), out)
+    got = out.copy_to_host()
+    outside = int((ref == pout).sum())
+    emit(name, np.array_equal(got, ref), f"{b.size} levels, {outside} off the grid")
+
+
 def check_error_rule_reduced(name):
     """The reduced download under the "error" rule (`pipeline.decode_whole` and `Staging.decode`
     with the runtime's `HOST_OUTPUTS`): column, confidence, valid and error come back with the
@@ -842,6 +874,7 @@ def main() -> int:
                                                                     w=12)),
         ("posterior-prior-ecc-22-10-inverse", lambda: check_posterior_prior(
             "posterior-prior-ecc-22-10-inverse", "ecc-22-10", h=1, w=12, inverse=True, a=2e-3)),
+        ("prior-cost", lambda: check_prior_cost("prior-cost")),
     ]
     only = [a for a in sys.argv[1:] if not a.startswith("--")]
     for name, fn in checks:

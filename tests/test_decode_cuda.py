@@ -71,7 +71,8 @@ CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inverse"
           "error-rule-ecc-22-10-hard-calibration", "error-rule-nary3-6",
           "error-rule-ecc-22-10-fitted", "error-rule-reduced-download", "error-rule-ecc-22-10-sgm",
           "staging", "runtime-pipeline", "reduced-download", "staged-frames", "staged-fallback", "staged-threads",
-          "service-staged", "runtime-error-rule", "posterior-prior-ecc-22-10", "posterior-prior-ecc-22-10-inverse"]
+          "service-staged", "runtime-error-rule", "posterior-prior-ecc-22-10", "posterior-prior-ecc-22-10-inverse",
+          "prior-cost"]
 
 
 #: CI's budget: on a cold 2-core machine the simulator subprocess compiles every CPU reference
@@ -89,7 +90,8 @@ CI_CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inver
              "soft-band-ecc-22-10-uint16", "soft-band-gray-10-bitdepth-normalized", "soft-nary3-6",
              "hard-ecc-22-10", "hard-gray-10", "validity", "refit-kernels-ecc-22-10", "decode-hard",
              "decode-soft-inverse-nocheck", "staging", "reduced-download",
-             "staged-frames", "runtime-error-rule", "posterior-prior-ecc-22-10", "error-rule-ecc-22-10-band"]
+             "staged-frames", "runtime-error-rule", "posterior-prior-ecc-22-10", "error-rule-ecc-22-10-band",
+             "prior-cost"]
 RUN_CHECKS = CHECKS if os.environ.get("EDGE_CUDA_CHECKS") == "full" else CI_CHECKS
 
 

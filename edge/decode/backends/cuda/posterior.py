@@ -267,11 +267,13 @@ def _prior_cost(ptab, pu0, pdu, pw0, pdw, pout, b, c):
     """`level_prior.cost_at`: -2 log p of levels (b, c) under the capture's level prior."""
     bp = b if b > 0.0 else 0.0
     cp = c if c > C_FLOOR else C_FLOOR
-    fu = math.floor((math.log10(cp) - pu0) / pdu)
-    fw = math.floor((bp / (bp + cp) - pw0) / pdw)
-    if fu < 0.0 or fu >= ptab.shape[0] or fw < 0.0 or fw >= ptab.shape[1]:
+    xu = (math.log10(cp) - pu0) / pdu
+    xw = (bp / (bp + cp) - pw0) / pdw
+    # floor(x) is in 0..n-1 exactly where 0 <= x < n; tested before the floor, which makes an
+    # integer here: NaN (b = inf) and inf are off the grid, as in level_prior.cost_at
+    if not (xu >= 0.0 and xu < ptab.shape[0] and xw >= 0.0 and xw < ptab.shape[1]):
         return pout
-    return ptab[int(fu), int(fw)]
+    return ptab[int(math.floor(xu)), int(math.floor(xw))]
 
 
 @cuda.jit(device=True)
