@@ -124,8 +124,7 @@ def _check_outputs(args: argparse.Namespace) -> None:
     folder = Path(args.directory)
     inputs = [p for p in folder.iterdir() if p.is_file()] if folder.is_dir() else []
     inputs += [Path(p) for p in (args.manifest, args.calibration) if p is not None and os.path.isfile(p)]
-    manifest = args.manifest
-    every_image = folder.is_dir() and resolve_layout(folder, args.layout, manifest) == "opencv-graycode"
+    every_image = folder.is_dir() and resolve_layout(folder, args.layout, args.manifest) == "opencv-graycode"
     for option, path in outputs:
         if path is None:
             continue
@@ -137,8 +136,8 @@ def _check_outputs(args: argparse.Namespace) -> None:
         if os.path.exists(path) and any(os.path.samefile(path, p) for p in inputs):
             raise ValueError(f"{option} {path} is an input of this command (the capture in {args.directory}, "
                              f"--manifest or --calibration); write to another file")
-        if (every_image and is_capture_image(path) and os.path.isdir(os.path.dirname(os.path.abspath(path)))
-                and os.path.samefile(os.path.dirname(os.path.abspath(path)), folder)):
+        parent = os.path.dirname(os.path.abspath(path))  # exists: check_output_file above
+        if every_image and is_capture_image(path) and os.path.samefile(parent, folder):
             raise ValueError(f"{option} {path}: an image in the capture folder {args.directory} would become one "
                              f"of its images (the opencv-graycode layout reads every image there); write it elsewhere")
 
@@ -158,8 +157,7 @@ def run(args: argparse.Namespace) -> int:
     if geometric and args.calibration is None:
         raise ValueError("--depth / --depth-picture / --ply: expected --calibration FILE (a procam calibration_result.xml)")
     calib = read_calibration(args.calibration) if args.calibration else None
-    layout = "manifest" if args.manifest is not None and args.layout == "auto" else args.layout
-    cap = load(args.directory, layout, projector, manifest=args.manifest)
+    cap = load(args.directory, args.layout, projector, manifest=args.manifest)  # resolve_layout: "auto"
     if calib is not None and calib.cam_size is not None and calib.cam_size != (cap.white.shape[1], cap.white.shape[0]):
         raise ValueError(f"--calibration: calibrated for {calib.cam_size[0]}x{calib.cam_size[1]} camera images, "
                          f"the capture is {cap.white.shape[1]}x{cap.white.shape[0]}")
