@@ -17,6 +17,11 @@ from ..codes.source import PAPER_CODES, correlation_report, family, source_code,
 
 
 
+#: The options of --table / --room-family where not given (None in the parser, so that giving them
+#: without either is refused by name).
+ROOM_DEFAULTS = {"stream": "aperiodic", "power_ratio": 1.0, "lengths": "4,6,8,10,12", "max_devices": 16}
+
+
 def _codes(args: argparse.Namespace) -> int:
     chosen = [name for name, given in (("CODES", args.codes), ("--family", args.family), ("--table", args.table),
                                        ("--room-family", args.room_family)) if given]
@@ -30,8 +35,7 @@ def _codes(args: argparse.Namespace) -> int:
     if room_only and not (args.table or args.room_family):  # the report ignored them without a word
         raise ValueError(f"{' / '.join(room_only)}: options of --table and --room-family")
     if args.table or args.room_family:
-        for name, default in (("stream", "aperiodic"), ("power_ratio", 1.0), ("lengths", "4,6,8,10,12"),
-                              ("max_devices", 16)):
+        for name, default in ROOM_DEFAULTS.items():
             if getattr(args, name) is None:
                 setattr(args, name, default)
         return _room_codes(args)
@@ -128,11 +132,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="room family of N codes of length L and its exact worst case under the sum")
     c.add_argument("--stream", choices=("aperiodic", "periodic"), default=None,
                    help="--table / --room-family: foreign devices send on/off symbols (aperiodic: DLP, curtains) or repeat their code "
-                        "(periodic: dot projectors) (default aperiodic)")
+                        f"(periodic: dot projectors) (default {ROOM_DEFAULTS['stream']})")
     c.add_argument("--power-ratio", type=float, default=None, metavar="P",
-                   help="--table / --room-family: each foreign device at most P x as bright as the own one (default 1)")
-    c.add_argument("--lengths", default=None, metavar="L,L,...", help="code lengths of --table (default 4,6,8,10,12)")
-    c.add_argument("--max-devices", type=int, default=None, metavar="N", help="largest N of --table (default 16)")
+                   help="--table / --room-family: each foreign device at most P x as bright as the own one "
+                        f"(default {ROOM_DEFAULTS['power_ratio']:g})")
+    c.add_argument("--lengths", default=None, metavar="L,L,...", help=f"code lengths of --table (default {ROOM_DEFAULTS['lengths']})")
+    c.add_argument("--max-devices", type=int, default=None, metavar="N", help=f"largest N of --table (default {ROOM_DEFAULTS['max_devices']})")
     c.set_defaults(func=_codes)
     e = sub.add_parser("event-demo", help="event-camera SL with an interfering dot projector")
     e.add_argument("--size", default="320x240", help="event sensor WxH (default 320x240)")
