@@ -1,4 +1,5 @@
-"""Pictures the commands write for people to look at (colour-mapped, not data): depth and column maps."""
+"""Pictures the commands write for people to look at (colour-mapped, not data): depth, projector
+columns and confidence."""
 
 from __future__ import annotations
 
@@ -18,3 +19,18 @@ def colorize_depth(depth_mm: np.ndarray) -> np.ndarray:
         out = cv2.applyColorMap((scaled * 255).astype(np.uint8), cv2.COLORMAP_TURBO)
         out[~valid] = 0
     return out
+
+
+def column_image(column: np.ndarray, columns: int) -> np.ndarray:
+    """(H, W) int32 columns (-1 invalid) -> (H, W, 3) uint8 BGR (turbo colour map, invalid black)."""
+    import cv2
+
+    scaled = np.clip(column.astype(np.float64) * (255.0 / max(columns - 1, 1)), 0, 255).astype(np.uint8)
+    img = cv2.applyColorMap(scaled, cv2.COLORMAP_TURBO)
+    img[column < 0] = 0
+    return img
+
+
+def confidence_image(confidence: np.ndarray) -> np.ndarray:
+    """(H, W) float32 in [0, 1] -> (H, W) uint8 0..255."""
+    return np.clip(np.rint(confidence * 255.0), 0, 255).astype(np.uint8)

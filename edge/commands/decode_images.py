@@ -34,7 +34,7 @@ from ..decode.layouts import LAYOUTS, decode_axes, is_capture_image, load, resol
 from ..decode.procam import DISAGREE_PX, estimate_step, read_calibration, reconstruct
 from ..io.ply import write_ply
 from ._args import check_output_file, parse_size
-from ._pictures import colorize_depth
+from ._pictures import colorize_depth, column_image, confidence_image
 
 #: Value of an invalid pixel in the uint16 column / row maps.
 MAP_INVALID = 65535
@@ -70,19 +70,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="PNG of the depth colour-mapped for viewing (TURBO, near blue, invalid black; needs --calibration)")
     p.add_argument("--ply", default=None, help="PLY point cloud in metres, camera optical frame (needs --calibration)")
     p.set_defaults(func=run)
-
-
-def column_image(column: np.ndarray, columns: int) -> np.ndarray:
-    """(H, W) int32 columns (-1 invalid) -> (H, W, 3) uint8 BGR (turbo colour map, invalid black)."""
-    scaled = np.clip(column.astype(np.float64) * (255.0 / max(columns - 1, 1)), 0, 255).astype(np.uint8)
-    img = cv2.applyColorMap(scaled, cv2.COLORMAP_TURBO)
-    img[column < 0] = 0
-    return img
-
-
-def confidence_image(confidence: np.ndarray) -> np.ndarray:
-    """(H, W) float32 in [0, 1] -> (H, W) uint8 0..255."""
-    return np.clip(np.rint(confidence * 255.0), 0, 255).astype(np.uint8)
 
 
 def pixel_map(cells: np.ndarray, step: int) -> np.ndarray:
