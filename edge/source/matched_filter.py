@@ -17,6 +17,15 @@ whose start is the nearest earlier boundary, shifted by ``guard_us`` so edge eve
 jitter land in the slot they belong to), signed counts are summed per period of L slots, and a pixel's
 events in a period are kept when the cosine between its counts and the code's transitions
 (``bits[i] - bits[i-1]``) is >= threshold and the event's polarity matches its slot's edge.
+
+Counts are int32, one accumulator of H*W*L counts per thread: exact (to wrap, one pixel's slot
+would need 2**31 events in one call, 28 GB of input).  int16 would wrap past 32,767 events of one
+polarity in one pixel's slot (a hot pixel, a long slot, no refractory time) and turn the pixel's
+own events into rejected ones; a saturating count would still bend its cosine.  The cost is 4
+bytes per pixel and slot per thread: 9.8 MB per thread for the largest event profile (640 x 480,
+L = 8; 4.9 MB in int16), 79 MB per thread for a 64-slot code (the longest ``code.source`` a
+profile takes) at that size.
+Slots are int16, so codes of at most `MAX_EVENT_CODE_LENGTH` slots are taken.
 """
 
 from __future__ import annotations
@@ -34,6 +43,8 @@ DEFAULT_THRESHOLD = 0.85
 #: Event default: ``10100010`` against a plain ``10`` square wave at the same slot rate reaches a
 #: cosine of 0.866, so event filters need a higher bar than frame filters.
 DEFAULT_EVENT_THRESHOLD = 0.92
+#: Longest code the event filter takes: its slots 0..L-1 are int16 (`EventFilterResult.slot`).
+MAX_EVENT_CODE_LENGTH = int(np.iinfo(np.int16).max) + 1
 
 
 @dataclass(frozen=True)
@@ -277,7 +288,7 @@ def _event_filter_kernel(xs, ys, ts, ps, width, height, t0, slot_us, guard_us, t
 
 
 class _Workspace:
-    """Per-thread accumulators reused across calls (int16 (chunks, H*W*L))."""
+    """Per-thread accumulators reused across calls: int32 (chunks, H*W*L) signed event counts."""
 
     def __init__(self) -> None:
         self.key: tuple[int, int, int, int] | None = None
@@ -286,7 +297,7 @@ class _Workspace:
     def get(self, chunks: int, width: int, height: int, length: int) -> np.ndarray:
         key = (chunks, width, height, length)
         if self.key != key or self.acc is None:
-            self.acc = np.zeros((chunks, width * height * length), np.int16)
+            self.acc = np.zeros((chunks, width * height * length), np.int32)
             self.key = key
         return self.acc
 
@@ -307,12 +318,17 @@ class EventMatchedFilter:
     t0_us: time of the start of slot 0 of period 0 (the device's projector clock, plus sensor latency);
     guard_us: how far before a slot boundary an event may arrive and still count for that slot
     (default slot_us // 4: jitter is symmetric, latency only delays).
+    Counts per pixel and slot are int32 (exact; see the module docstring for the memory); codes
+    longer than `MAX_EVENT_CODE_LENGTH` slots are refused (ValueError).
     """
 
     def __init__(self, code: "SourceCode | str", *, width: int, height: int, slot_us: int,
                  t0_us: int = 0, guard_us: int | None = None, threshold: float = DEFAULT_EVENT_THRESHOLD,
                  threads: int | None = None) -> None:
         self.code = source_code(code)
+        if self.code.length > MAX_EVENT_CODE_LENGTH:
+            raise ValueError(f"the event filter takes codes of at most {MAX_EVENT_CODE_LENGTH} slots, got a code "
+                             f"of {self.code.length} (its slot index is int16)")
         if width <= 0 or height <= 0:
             raise ValueError(f"sensor size must be positive, got {width}x{height}")
         if int(slot_us) < 1:
@@ -345,7 +361,7 @@ class EventMatchedFilter:
         n = t.size
         keep = np.zeros(n, np.bool_)
         period = np.zeros(n, np.int64)
-        slot = np.zeros(n, np.int16)  # int8 wrapped slots >= 128 of long codes (own events dropped)
+        slot = np.zeros(n, np.int16)  # L <= MAX_EVENT_CODE_LENGTH (int8 wrapped slots >= 128)
         if n:
             acc = self._ws.get(self.chunks, self.width, self.height, self.code.length)
             dropped = _event_filter_kernel(
