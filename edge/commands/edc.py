@@ -33,6 +33,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 
+def _camera_size(text: str, labels: str | list[str]) -> tuple[int, int]:
+    """``--size`` WxH -> (width, height) pixels, large enough for the GI scene(s) ``labels``
+    (`edge.eval.edc.check_gi_size`, the one size rule of both actions); ValueError naming --size."""
+    from edge.eval.edc import check_gi_size
+
+    w, h = parse_size(text)
+    try:
+        check_gi_size(labels, w, h)
+    except ValueError as exc:
+        raise ValueError(f"--size: {exc}") from None
+    return w, h
+
+
 def _check_seed(seed: int) -> None:
     if seed < 0:  # numpy's "expected non-negative integer" named no option
         raise ValueError(f"--seed must be >= 0, got {seed}")
@@ -42,14 +55,15 @@ def _run(args: argparse.Namespace) -> int:
     from edge.eval.edc import gi_camera, make_gi_scene, score_loop
     from edge.edc.gupta import EnsembleScheme
 
-    w, h = parse_size(args.size)
+    camera = gi_camera(args.scene)  # an unknown label: ValueError (one line, exit 2)
+    w, h = _camera_size(args.size, args.scene)
     _check_seed(args.seed)
     if args.rounds < 1:
         raise ValueError(f"--rounds must be >= 1, got {args.rounds}")
-    scene = make_gi_scene(args.scene, w, h, args.seed)  # an unknown label: ValueError (one line, exit 2)
+    scene = make_gi_scene(args.scene, w, h, args.seed)
     scheme = EnsembleScheme() if args.code == "gupta" else args.code
     opts = {"neighbour_tolerance": None} if args.no_support else {}
-    score, result = score_loop(scene, gi_camera(args.scene), scheme, rng=args.seed + 2, max_rounds=args.rounds,
+    score, result = score_loop(scene, camera, scheme, rng=args.seed + 2, max_rounds=args.rounds,
                                binarisation=args.binarisation, **opts)
     for r in result.rounds:
         print(f"round {r.round}: {r.frames} frames ({r.calibration_frames} calibration), checked {r.checked}, "
@@ -65,9 +79,9 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _eval(args: argparse.Namespace) -> int:
-    from edge.eval.edc import run_report
+    from edge.eval.edc import GI_SCENES, run_report
 
-    w, h = parse_size(args.size, minimum=8)  # its scenes need a few pixels of structure
+    w, h = _camera_size(args.size, list(GI_SCENES))
     _check_seed(args.seed)
     run_report(output_dir(args.out), width=w, height=h, seed=args.seed, command=f"edge edc eval --size {args.size}")
     print(f"wrote {args.out}/README.md, roc.png, loop.png")

@@ -87,18 +87,53 @@ GI_SCENES: dict[str, dict[str, Any]] = {
 }
 
 
+#: Smallest camera (width, height) in pixels of a scene generator.  `edge.sim.make_scene` takes
+#: 2 x 2; the ``scattering`` generator draws its scattering regions as ellipses with semi-axes of
+#: width/12 .. width/6 and height/12 .. height/5 pixels (integer bounds, upper bound excluded),
+#: an empty range below 6 columns or 5 rows.  The EDC code itself puts no bound on the camera: it
+#: codes projector columns, and every camera pixel is decoded on its own.
+MIN_SCENE_SIZE: dict[str, tuple[int, int]] = {"scattering": (6, 5)}
+_ANY_SCENE_SIZE = (2, 2)
+
+
 def _entry(label: str) -> dict[str, Any]:
     if label not in GI_SCENES:
         raise ValueError(f"unknown GI scene {label!r}; valid: {', '.join(GI_SCENES)}")
     return GI_SCENES[label]
 
 
+def _base(label: str) -> str:
+    """The `edge.sim.make_scene` generator of scene ``label``: its ``base``, default the label up to a
+    '-<digits>' suffix."""
+    return _entry(label).get("base", "v-groove" if label.startswith("v-groove") else label)
+
+
+def gi_min_size(label: str) -> tuple[int, int]:
+    """Smallest camera (width, height) in pixels on which GI scene ``label`` can be built."""
+    return MIN_SCENE_SIZE.get(_base(label), _ANY_SCENE_SIZE)
+
+
+def check_gi_size(labels: str | list[str] | tuple[str, ...], width: int, height: int) -> None:
+    """ValueError unless a ``width`` x ``height`` camera (pixels) is large enough for every GI scene of
+    ``labels`` (one label or several); the message names the scenes and the size they need.
+
+    The one size rule of ``edge edc run``, ``edge edc eval`` and `run_report` (checked before any work).
+    """
+    names = [labels] if isinstance(labels, str) else list(labels)
+    small = [s for s in names if width < gi_min_size(s)[0] or height < gi_min_size(s)[1]]
+    if small:
+        need_w = max(gi_min_size(s)[0] for s in small)
+        need_h = max(gi_min_size(s)[1] for s in small)
+        which = f"GI scene {small[0]} needs" if len(small) == 1 else f"GI scenes {', '.join(small)} need"
+        raise ValueError(f"camera {width}x{height} is too small: {which} at least {need_w}x{need_h} pixels")
+
+
 def make_gi_scene(label: str, width: int, height: int, seed: int = 0):
-    """Scene ``label`` of `GI_SCENES` (its ``base`` generator, default the label before a '-<digits>' suffix)."""
-    entry = _entry(label)
-    base = entry.get("base", "v-groove" if label.startswith("v-groove") else label)
-    params = {k: v for k, v in entry.items() if k not in ("base", "camera")}
-    return make_scene(base, width, height, seed=seed, **params)
+    """Scene ``label`` of `GI_SCENES` (its ``base`` generator, default the label before a '-<digits>' suffix)
+    for a ``width`` x ``height`` camera; ValueError when the camera is too small (`check_gi_size`)."""
+    check_gi_size(label, width, height)
+    params = {k: v for k, v in _entry(label).items() if k not in ("base", "camera")}
+    return make_scene(_base(label), width, height, seed=seed, **params)
 
 
 def gi_camera(label: str, camera: Any = None):
@@ -348,9 +383,10 @@ def run_report(out_dir: Path, *, width: int = 256, height: int = 192, seed: int 
     and write roc.png, loop.png and README.md into ``out_dir``; returns the scores and verdicts."""
     from tqdm import tqdm
 
+    labels = list(scenes) if scenes is not None else list(GI_SCENES)
+    check_gi_size(labels, width, height)  # before any work, not at the first scene too small
     plt = pyplot()
     out_dir.mkdir(parents=True, exist_ok=True)
-    labels = list(scenes) if scenes is not None else list(GI_SCENES)
     jobs = ([(s, "roc", code) for s in labels for code in MAP_CODES] + [(s, "loop", i) for s in labels
                                                                          for i in range(len(RUNS))])
     roc: dict[tuple[str, str], Any] = {}
