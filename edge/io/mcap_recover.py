@@ -6,14 +6,19 @@ possibly part of a chunk, and no summary or footer. `recover` reads the file rec
 on with the next valid one, stops at the end of the readable data, and writes everything readable
 (schemas, channels, messages, metadata, attachments) into a new, finalised MCAP file with the same
 chunk compression. It returns a `RecoveryReport`; a file that is fine is simply copied
-record by record (``report.complete_input`` is True). Non-MCAP input raises `NotMcapError`.
+record by record (``report.complete_input`` is True). Non-MCAP input raises `NotMcapError`; a
+damaged file without a single readable message (cut inside its first chunk) raises
+`RecordingError` and nothing is written.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import uuid
 from dataclasses import dataclass, field
+from typing import BinaryIO
 
 from mcap.records import Attachment, Channel, Chunk, Footer, Header, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
@@ -61,7 +66,13 @@ class RecoveryReport:
 
 def recover(path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
             chunk_size: int = 4 * 1024 * 1024) -> RecoveryReport:
-    """Copy the readable part of ``path`` into a finalised MCAP at ``out_path``; see the module doc."""
+    """Copy the readable part of ``path`` into a finalised MCAP at ``out_path``; see the module doc.
+
+    The output is written to a temporary file next to ``out_path`` and renamed onto it at the end,
+    so ``out_path`` is never left half-written.  An incomplete input from which no message could be
+    read (cut inside its first chunk, only a header) raises `RecordingError` and writes nothing:
+    an empty "recovered" file would pass for a salvage of the recording.
+    """
     path, out_path = os.fspath(path), os.fspath(out_path)
     if os.path.abspath(path) == os.path.abspath(out_path) or (
             os.path.exists(out_path) and os.path.exists(path) and os.path.samefile(path, out_path)):
@@ -80,9 +91,25 @@ def recover(path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
 
     report = RecoveryReport(path=path, out_path=out_path, total_bytes=total,
                             recovered_bytes=len(MCAP_MAGIC), chunks=0, messages=0)
-    # Pass 1: find the compression and the header profile without writing anything.
-    compression, header_profile = CompressionType.ZSTD, MCAP_PROFILE
-    library = "edge recover"
+    partial = os.path.join(os.path.dirname(os.path.abspath(out_path)),
+                           f".edge-recover-{os.getpid()}-{uuid.uuid4().hex[:8]}.part")
+    try:
+        with open(partial, "xb") as out:
+            _copy_readable(path, out, report, chunk_size)
+        if report.messages == 0 and not report.complete_input:
+            raise RecordingError(f"{path}: nothing could be recovered: no complete chunk holds a message "
+                                 f"({report.reason or 'no chunk at all'}); nothing was written")
+        os.replace(partial, out_path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(partial)
+    return report
+
+
+def _header_and_compression(path: str, total: int) -> tuple[str, str, CompressionType]:
+    """(profile, library) of the input's header and the compression of its first chunk, without
+    writing anything; defaults where the file holds no header or no readable chunk."""
+    compression, header_profile, library = CompressionType.ZSTD, MCAP_PROFILE, "edge recover"
     with open(path, "rb") as f:
         try:
             for record in StreamReader(f, emit_chunks=True, record_size_limit=max(total, 1)).records:
@@ -93,22 +120,27 @@ def recover(path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
                     break
         except CORRUPT_ERRORS:
             pass
+    return header_profile, library, compression
 
+
+def _copy_readable(path: str, out: BinaryIO, report: RecoveryReport, chunk_size: int) -> None:
+    """Write every readable record of ``path`` into ``out`` as a finalised MCAP; fill ``report``."""
+    header_profile, library, compression = _header_and_compression(path, report.total_bytes)
     schema_map: dict[int, int] = {}
     channel_map: dict[int, int] = {}
     topics_by_id: dict[int, str] = {}
     stacks: set[int] = set()
-    with open(out_path, "wb") as out, open(path, "rb") as f:
+    with open(path, "rb") as f:
         writer = Writer(out, chunk_size=chunk_size, compression=compression, enable_crcs=True,
                         enable_data_crcs=True)
         writer.start(profile=header_profile, library=library)
         spare_schemas, spare_channels = summary_definitions(f)  # if the defining chunk is corrupt
-        scan = RecordScanner(f, total)
+        scan = RecordScanner(f, report.total_bytes)
         try:
             for record, end in scan:
                 if isinstance(record, Footer):
                     report.complete_input = not scan.problems
-                    report.recovered_bytes = total
+                    report.recovered_bytes = report.total_bytes
                     break
                 if isinstance(record, (Schema, Channel, Message, Metadata, Attachment)):
                     if isinstance(record, Message) and record.channel_id not in channel_map \
@@ -132,7 +164,6 @@ def recover(path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
         offset, reason, _ = scan.problems[0]
         report.reason = reason if f"byte {offset}" in reason else f"{reason} at byte {offset}"
     report.stacks = sorted(stacks)
-    return report
 
 
 def _copy(writer: Writer, r: object, schema_map: dict[int, int], channel_map: dict[int, int],
