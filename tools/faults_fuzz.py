@@ -18,6 +18,7 @@ The budget is chosen by ``EDGE_FUZZ`` (``ci``, the default, or ``full``); ``rows
 
     python tools/faults_fuzz.py           # CI budget
     python tools/faults_fuzz.py --full    # thousands of examples + the 4000 x 3000 stack
+    python tools/faults_fuzz.py --full --seed 7 --examples 5000   # another draw, a bigger budget
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, given, seed, settings
 from hypothesis import strategies as st
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -59,13 +60,25 @@ for _name, _b in BUDGETS.items():
                               suppress_health_check=list(HealthCheck), derandomize=_name == "ci")
 
 
+#: ``--seed`` / ``--examples``: hypothesis' random seed and the examples per property (None: the
+#: budget's own); a seed makes a full run repeatable (the CI budget is derandomised anyway)
+RUN: dict[str, int | None] = {"seed": None, "examples": None}
+
+
 def budget(kind: str) -> int:
-    return BUDGETS[os.environ.get("EDGE_FUZZ", "ci")][kind]
+    return RUN["examples"] or BUDGETS[os.environ.get("EDGE_FUZZ", "ci")][kind]
 
 
-def _settings(kind: str) -> settings:
-    return settings(settings.get_profile(f"edge-{os.environ.get('EDGE_FUZZ', 'ci')}"),
-                    max_examples=budget(kind))
+def _settings(kind: str) -> Callable[[Callable[..., None]], Callable[..., None]]:
+    """The decorator for property `kind`: its budget's settings, and ``RUN["seed"]`` when set."""
+    chosen = settings(settings.get_profile(f"edge-{os.environ.get('EDGE_FUZZ', 'ci')}"),
+                      max_examples=budget(kind))
+
+    def apply(prop: Callable[..., None]) -> Callable[..., None]:
+        prop = chosen(prop)
+        return prop if RUN["seed"] is None else seed(RUN["seed"])(prop)
+
+    return apply
 
 
 def _one_line(text: str) -> bool:
@@ -483,7 +496,12 @@ def rows(full: bool) -> list[dict[str, Any]]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--full", action="store_true", help="large example budgets and the 4000 x 3000 stack")
+    ap.add_argument("--seed", type=int, default=None, help="hypothesis' random seed (repeat a --full run)")
+    ap.add_argument("--examples", type=int, default=None, help="examples per property instead of the budget's")
     args = ap.parse_args()
+    if args.examples is not None and args.examples < 1:
+        raise ValueError(f"--examples must be >= 1, got {args.examples}")
+    RUN.update(seed=args.seed, examples=args.examples)
     t0 = time.monotonic()
     table = rows(args.full)
     print("| fault | trials | outcomes | target | met |\n|---|---|---|---|---|")
