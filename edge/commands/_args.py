@@ -5,6 +5,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from edge.io.paths import check_folder
+
 
 #: Largest width or height a size option takes (pixels): beyond any camera or projector.
 MAX_SIZE = 16384
@@ -30,6 +32,7 @@ def output_dir(path: str | os.PathLike[str], *, option: str = "--out") -> Path:
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise ValueError(f"{option} {path}: is a file; expected a folder")
+    check_folder(path, option=option, missing_ok=True)  # a file further up: named, not "Not a directory"
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -41,13 +44,11 @@ def output_dir(path: str | os.PathLike[str], *, option: str = "--out") -> Path:
 
 def check_output_file(path: str | os.PathLike[str], *, option: str) -> None:
     """ValueError naming the option unless ``path`` can be written as a file: not a folder, its
-    folder exists and is writable.  Nothing is created (checked before a long run)."""
+    folder exists and is writable (`edge.io.paths.check_folder`: a file where a folder should be is
+    named at any depth).  Nothing is created (checked before a long run)."""
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"{option} {path}: is a folder; expected a file name")
-    folder = path.absolute().parent
-    if not folder.is_dir():
-        why = f"{folder} is a file, not a folder" if folder.exists() else f"folder {folder} does not exist"
-        raise ValueError(f"{option} {path}: {why}")
+    folder = check_folder(path.absolute().parent, option=option, path=path)
     if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise ValueError(f"{option} {path}: not writable")

@@ -14,11 +14,11 @@ import os
 import threading
 import time
 from collections import deque
-from pathlib import Path
 from typing import Any
 
 from edge.io.mcap_reader import MAX_PENDING
 from edge.io.mcap_writer import Recorder
+from edge.io.paths import check_folder
 
 from ..sensors.base import EventSlice, Frame, parse_projector_frame
 from edge.runtime.result import DepthResult
@@ -455,12 +455,7 @@ def check_record_path(path: str | os.PathLike[str], *, overwrite: bool = False, 
         raise ValueError(f"{option}: expected a file name, got ''")
     if os.path.isdir(path):
         raise ValueError(f"{option} {path}: is a directory; expected a file name such as {os.path.join(path, 'run.mcap')}")
-    folder = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(folder):
-        above = next((p for p in [folder, *Path(folder).parents] if os.path.lexists(p)), None)
-        if above is not None and not os.path.isdir(above):
-            raise ValueError(f"{option} {path}: {above} is a file, not a folder")
-        raise ValueError(f"{option} {path}: folder {folder} does not exist")
+    folder = os.fspath(check_folder(os.path.dirname(os.path.abspath(path)), option=option, path=path))
     try:
         name_max = os.pathconf(folder, "PC_NAME_MAX")
     except (OSError, ValueError):
