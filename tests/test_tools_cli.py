@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import argparse
+import importlib.util
 import os
 import subprocess
 import sys
@@ -59,3 +61,69 @@ def test_tool_main_reports_input_errors_and_raises_bugs(capsys):
     assert tool_main(lambda: None, "t.py") == 0 and tool_main(lambda: 1, "t.py") == 1
     with pytest.raises(KeyError):
         tool_main(bug, "t.py")
+
+
+class _Parsed(Exception):
+    """Raised instead of parsing: carries the script's parser out of its ``main``."""
+
+
+def _tool_parser(script: Path, monkeypatch) -> argparse.ArgumentParser | None:
+    """The argument parser ``script``'s ``main`` builds (None for a script without ``main``): the
+    script is imported and ``main`` stopped at its ``parse_args`` call, before any work."""
+    def stop(self, *_a, **_k):
+        raise _Parsed(self)
+
+    name = f"_tool_{script.stem}"
+    spec = importlib.util.spec_from_file_location(name, script)
+    module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, name, module)  # dataclasses look their module up there
+    spec.loader.exec_module(module)
+    if not hasattr(module, "main"):
+        return None
+    monkeypatch.setattr(argparse.ArgumentParser, "parse_args", stop)
+    with pytest.raises(_Parsed) as parsed:
+        module.main()
+    monkeypatch.undo()
+    return parsed.value.args[0]
+
+
+def _renderings(default) -> set[str] | None:
+    """How a help text may write ``default`` ("default 0.5", "default 0 1", "default docs/x"), or
+    None when no generic rendering exists (the word "default" must do)."""
+    if isinstance(default, (list, tuple)):
+        if not all(isinstance(v, (str, int, float)) for v in default):
+            return None
+        return {" ".join(map(str, default)), ",".join(map(str, default)), ", ".join(map(str, default))}
+    out = {str(default)}
+    if isinstance(default, float):
+        out.add(f"{default:g}")
+    if isinstance(default, (str, os.PathLike)) and os.path.isabs(default):
+        out.add(os.path.relpath(default, TOOLS.parent))  # a path below the repository, written from its root
+    return out
+
+
+def test_every_tool_option_states_its_default(monkeypatch):
+    """As `edge`'s own options (tests/test_cli_help.py): an option with a default says which, in
+    argparse's ``%(default)s`` (or ``%(default)g``) or in words that name the real value (store_true flags and options
+    without a default excepted).  bench_service --seconds, eval_room --pixels and more did not."""
+    undocumented, parsers = [], 0
+    for script in sorted(TOOLS.glob("*.py")):
+        parser = _tool_parser(script, monkeypatch)
+        if parser is None:
+            assert "add_argument" not in script.read_text(), f"{script.name}: options but no main()"
+            continue
+        parsers += 1
+        for action in parser._actions:
+            default = action.default
+            if isinstance(action, argparse._HelpAction) or action.help == argparse.SUPPRESS \
+                    or default in (None, False, [], argparse.SUPPRESS) or isinstance(default, bool):
+                continue
+            text = action.help or ""
+            label = f"{script.name} {'/'.join(action.option_strings) or action.dest} (default {default!r})"
+            if "%(default)" in text:  # argparse writes the real value
+                continue
+            shown = _renderings(default)
+            if "default" not in text or (shown is not None and not any(s in text for s in shown)):
+                undocumented.append(f"{label}: {text!r}")
+    assert parsers >= 25
+    assert not undocumented, "\n".join(undocumented)

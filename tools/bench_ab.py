@@ -114,9 +114,11 @@ def _run_side(root: Path, cache: Path, cases: list[str], repeats: int) -> dict:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rev", default="HEAD", help="side A: the git revision to compare against (default HEAD)")
-    ap.add_argument("--rounds", type=int, default=4, help="alternating rounds (each side once per round)")
-    ap.add_argument("--repeats", type=int, default=3, help="timed calls per case in each run")
-    ap.add_argument("--cases", nargs="+", choices=CASES, default=list(CASES), help="what to time")
+    ap.add_argument("--rounds", type=int, default=4,
+                    help="alternating rounds (each side once per round; default %(default)s)")
+    ap.add_argument("--repeats", type=int, default=3, help="timed calls per case in each run (default %(default)s)")
+    ap.add_argument("--cases", nargs="+", choices=CASES, default=list(CASES),
+                    help=f"what to time (default: all, {' '.join(CASES)})")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:

@@ -33,7 +33,7 @@ def _pairs(text: str) -> list[tuple[int, int]]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, default=3, help="tabu-search seeds per (n, k) (default 3)")
-    parser.add_argument("--iterations", type=int, default=20000, help="tabu moves per seed (all restarts)")
+    parser.add_argument("--iterations", type=int, default=20000, help="tabu moves per seed, all restarts (default %(default)s)")
     parser.add_argument("--restarts", type=int, default=4, help="restarts of the tabu search per seed (default 4)")
     parser.add_argument("--pairs", type=_pairs, default=PAIRS, help="NxK list, default: " +
                         ",".join(f"{n}x{k}" for n, k in PAIRS))

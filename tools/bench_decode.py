@@ -310,7 +310,8 @@ def main(argv=None) -> int:
                    help="also measure compile times in a subprocess with an empty numba cache")
     p.add_argument("--_child-compile", action="store_true", help=argparse.SUPPRESS)
     p.add_argument("--backend", choices=("cpu", "cuda"), default="cpu",
-                   help="cuda: the CUDA backend against a plain GPU GEMM + top-3 baseline (bench_cuda)")
+                   help="cuda: the CUDA backend against a plain GPU GEMM + top-3 baseline (bench_cuda) "
+                        "(default %(default)s)")
     p.add_argument("--small", action="store_true",
                    help="with --backend cuda: a 2 x 16 image (checks the code path under NUMBA_ENABLE_CUDASIM=1)")
     args = p.parse_args(argv)

@@ -23,10 +23,12 @@ import numpy as np
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--profile", default="sim-dlp", help="firmware profile (a 'columns' profile with the sim sensor)")
-    ap.add_argument("--rounds", type=int, default=3, help="edc.rounds (masked rounds after the stack's own check)")
+    ap.add_argument("--profile", default="sim-dlp",
+                    help="firmware profile, a 'columns' profile with the sim sensor (default %(default)s)")
+    ap.add_argument("--rounds", type=int, default=3,
+                    help="edc.rounds: masked rounds after the stack's own check (default %(default)s)")
     ap.add_argument("--scene", default=None, help="sim scene (default: the profile's)")
-    ap.add_argument("--stacks", type=int, default=3, help="different stacks (poses)")
+    ap.add_argument("--stacks", type=int, default=3, help="different stacks (poses; default %(default)s)")
     ap.add_argument("--repeats", type=int, default=7, help="timed runs; medians are reported (default 7)")
     args = ap.parse_args(argv)
 

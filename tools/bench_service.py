@@ -70,8 +70,8 @@ def edc_profile(name: str, rounds: int, folder: Path):
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--profile", default="sim-dlp", help="firmware profile name or TOML path (default sim-dlp)")
-    ap.add_argument("--seconds", type=float, default=60.0, help="measured run time after warm-up")
-    ap.add_argument("--warmup", type=float, default=10.0, help="seconds ignored at the start (numba load, poses)")
+    ap.add_argument("--seconds", type=float, default=60.0, help="measured run time after warm-up (default %(default)g)")
+    ap.add_argument("--warmup", type=float, default=10.0, help="seconds ignored at the start: numba load, poses (default %(default)g)")
     ap.add_argument("--poses", type=int, default=8, help="pre-rendered poses of the moving scene (default 8)")
     ap.add_argument("--no-record", action="store_true", help="run without the MCAP recording")
     ap.add_argument("--edc-rounds", type=int, default=None, metavar="R",

@@ -93,10 +93,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--size", default="160x120", help="scene size WxH (default 160x120)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1], help="scene / noise seeds (default 0 1)")
     ap.add_argument("--gen", nargs="+", default=list(GENERATORS), choices=list(GENERATORS),
-                    help="scene generators (default: all)")
-    ap.add_argument("--codes", nargs="+", default=list(CODES), help="code names (default: the table's codes)")
+                    help=f"scene generators (default: all, {' '.join(GENERATORS)})")
+    ap.add_argument("--codes", nargs="+", default=list(CODES), help=f"code names (default: the table's codes, {' '.join(CODES)})")
     ap.add_argument("--rules", nargs="+", default=list(RULES), choices=list(RULES),
-                    help="validity rules / level sources compared (default: all)")
+                    help=f"validity rules / level sources compared (default: all, {' '.join(RULES)})")
     args = ap.parse_args(argv)
     size = parse_size(args.size)
     for g in args.gen:

@@ -193,7 +193,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1], help="scene / noise seeds (default 0 1)")
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results" / "posterior",
                     help="folder for README.md and reliability.png (default docs/results/posterior)")
-    ap.add_argument("--real", type=Path, default=REAL, help="OpenCV Gray-code capture folder (skipped if absent)")
+    ap.add_argument("--real", type=Path, default=REAL, help="OpenCV Gray-code capture folder, skipped if absent "
+                    "(default ../shared/data/procam-graycode/capture_0)")
     args = ap.parse_args(argv)
     size = parse_size(args.size)
     lines: list[str] = [f"Command: `python tools/eval_posterior.py --size {args.size} --seeds "

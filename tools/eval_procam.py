@@ -157,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--capture", default=CAPTURE, help=f"capture directory (default {CAPTURE})")
     p.add_argument("--calibration", default=CALIBRATION, help=f"calibration file (default {CALIBRATION})")
-    p.add_argument("--out", type=Path, default=REPO / "docs" / "results" / "procam", help="output folder")
+    p.add_argument("--out", type=Path, default=REPO / "docs" / "results" / "procam", help="output folder (default docs/results/procam)")
     p.add_argument("--inlier-mm", type=float, default=20.0, help="plane inlier distance in mm (default 20)")
     a = p.parse_args(argv)
     figures = run(a.capture, a.calibration, a.out, a.inlier_mm)

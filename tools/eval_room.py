@@ -205,7 +205,7 @@ def main() -> int:
     ap.add_argument("--out", default=str(ROOT / "docs" / "results" / "room"),
                     help="output folder (default docs/results/room)")
     ap.add_argument("--max-devices", type=int, default=8, help="largest number of devices in the room (default 8)")
-    ap.add_argument("--pixels", type=int, default=2000, help="pixels of the slot-level simulation")
+    ap.add_argument("--pixels", type=int, default=2000, help="pixels of the slot-level simulation (default %(default)s)")
     ap.add_argument("--quick", action="store_true", help="code tables up to L = 12 only")
     args = ap.parse_args()
     if args.max_devices < 2:  # a room of one device has no table (it failed with an IndexError)

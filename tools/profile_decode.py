@@ -152,9 +152,9 @@ def tail_rows(code, cap, repeats: int) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--repeats", type=int, default=5, help="timed calls per row (median)")
-    ap.add_argument("--height", type=int, default=600, help="image height of the inputs (pixels)")
-    ap.add_argument("--width", type=int, default=700, help="image width of the inputs (pixels)")
+    ap.add_argument("--repeats", type=int, default=5, help="timed calls per row, the median reported (default %(default)s)")
+    ap.add_argument("--height", type=int, default=600, help="image height of the inputs in pixels (default %(default)s)")
+    ap.add_argument("--width", type=int, default=700, help="image width of the inputs in pixels (default %(default)s)")
     ap.add_argument("--seed", type=int, default=0, help="seed of both inputs")
     args = ap.parse_args(argv)
     h, w = args.height, args.width

@@ -43,9 +43,9 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--profile", default="sim-dlp", help="firmware profile name or TOML path (default sim-dlp)")
     ap.add_argument("--seconds", type=float, default=600.0, help="run length in seconds (default 600)")
-    ap.add_argument("--cycle", type=float, default=20.0, help="seconds subscribed, then seconds away")
+    ap.add_argument("--cycle", type=float, default=20.0, help="seconds subscribed, then seconds away (default %(default)g)")
     ap.add_argument("--poses", type=int, default=8, help="pre-rendered poses of the moving scene (default 8)")
-    ap.add_argument("--max-growth", type=float, default=2.0, help="allowed RSS slope, MB per minute")
+    ap.add_argument("--max-growth", type=float, default=2.0, help="allowed RSS slope, MB per minute (default %(default)g)")
     args = ap.parse_args()
 
     from edge.io.zenoh import DepthSubscriber
