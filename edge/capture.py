@@ -1,4 +1,4 @@
-"""`CodedCapture`: the one coded-capture type, and `full_scale`, the one full-scale rule.
+"""`CodedCapture`: the one coded-capture type; `full_scale` and `bit_depth_of`, the one full-scale rule.
 
 Every producer of coded frames builds a `CodedCapture`: the simulator (`edge.sim.capture_code`),
 the file layouts (`edge.decode.layouts`, one per coded axis), the synthetic helper
@@ -13,7 +13,11 @@ Units:
   uint16 or float32 / float64.  Raw values; ``value * scale`` is the normalised intensity
   (1.0 = full scale).  Floats are taken as already normalised (scale 1).
 * bit_depth: significant bits of integer samples (uint16 data of a 10- or 12-bit sensor holds
-  0 .. 2**bit_depth - 1); None = the dtype's width (8 for uint8, 16 for uint16).
+  0 .. 2**bit_depth - 1).  Not given: 8 for uint8; for uint16 detected from the samples by
+  `bit_depth_of` (the smallest of `DETECTED_DEPTHS` holding the largest value, so 12-bit data in
+  uint16 reads at 4095) and stored, so that ``scale`` is the one `edge.decode.decode` reads the
+  same arrays at, whichever entry point a capture comes through.  A producer that knows its
+  sensor's depth (the runtime, the simulator) states it.
 * frame_exposure: (n + 2,) float64 exposure of code frames 0 .. n-1, then white, then black, in
   ``exposure_unit``: ``"us"`` (microseconds, device frames: `edge.sensors.base.Frame.exposure_us`)
   or ``"relative"`` (the simulator's `edge.sim.CameraModel` units, where light is linear in it).
@@ -60,6 +64,31 @@ def full_scale(dtype: np.dtype | type, bit_depth: int | None = None) -> float:
     raise ValueError(f"frames: expected dtype uint8, uint16, float32 or float64, got {np.dtype(dtype)}")
 
 
+#: Bit depths `bit_depth_of` detects uint16 data as, where none is given: the common ADC widths.
+DETECTED_DEPTHS = (8, 10, 12, 14, 16)
+
+
+def bit_depth_of(arrays: list[tuple[str, np.ndarray]], bit_depth: int | None) -> int | None:
+    """The bit depth of integer samples (None for floats, which are normalised, and for uint8
+    without ``bit_depth``: 8 bits).  ``arrays``: (name, array) pairs of one dtype.  ``bit_depth``
+    where given: an integer that holds every value, 1..8 for uint8 and 1..16 for uint16
+    (`full_scale`); else, for uint16, the smallest of `DETECTED_DEPTHS` whose full scale holds
+    the largest value.  One ValueError naming the problem otherwise."""
+    dtype = arrays[0][1].dtype
+    if bit_depth is not None:
+        full_scale(dtype, bit_depth)  # raises for a non-integer, outside 1..8 (uint8) / 1..16 (uint16)
+    if dtype.kind == "f" or (dtype == np.uint8 and bit_depth is None):
+        return None
+    top = max(int(a.max()) if a.size else 0 for _, a in arrays)
+    if bit_depth is None:
+        return next(b for b in DETECTED_DEPTHS if top <= (1 << b) - 1)
+    if top > (1 << int(bit_depth)) - 1:
+        name = next(n for n, a in arrays if a.size and int(a.max()) == top)
+        raise ValueError(f"{name}: values up to {top} exceed the full scale {(1 << int(bit_depth)) - 1} of "
+                         f"bit_depth={int(bit_depth)}")
+    return int(bit_depth)
+
+
 def dtype_for_bits(bits: int) -> type:
     """Sample dtype of a sensor with ``bits`` ADC bits: uint8 for 8 (or fewer), uint16 up to 16."""
     if isinstance(bits, bool) or not isinstance(bits, (int, np.integer)) or not 1 <= int(bits) <= 16:
@@ -86,7 +115,8 @@ class CodedCapture:
         code: the code projected (None when the producer does not know it).
         columns: codebook rows in use (projector width / stripe), None = all.
         stripe: projector pixels per code cell, None = not stated (image layouts).
-        bit_depth: significant bits of integer samples, None = the dtype's width.
+        bit_depth: significant bits of integer samples; None: 8 for uint8, detected for uint16
+            (`bit_depth_of`; the detected depth is stored here).
         frame_exposure: (n + 2,) float64 exposure of code frames, white, black; None = unknown.
         exposure_unit: "us" or "relative" (see the module docstring).
         noise: `NoiseModel` or None.
@@ -110,6 +140,8 @@ class CodedCapture:
     truth: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
+        if self.bit_depth is None:
+            object.__setattr__(self, "bit_depth", self._detected_depth())
         if self.exposure_unit not in EXPOSURE_UNITS:
             raise ValueError(f"exposure_unit: expected one of {', '.join(EXPOSURE_UNITS)}, got {self.exposure_unit!r}")
         if self.frame_exposure is not None:
@@ -122,6 +154,18 @@ class CodedCapture:
                 raise ValueError(f"frame_exposure: expected finite exposures >= 0 (0 = not known), got {e.tolist()}")
             e.setflags(write=False)
             object.__setattr__(self, "frame_exposure", e)
+
+    def _detected_depth(self) -> int | None:
+        """`bit_depth_of` the uint16 samples (either byte order) of frames, white, black and
+        inverse (those of the frames' dtype); None for any other dtype (uint8 is 8 bits, floats are
+        normalised, other dtypes are refused where a decoder reads them)."""
+        dtype = getattr(self.frames, "dtype", None)
+        if dtype is None or np.dtype(dtype).newbyteorder("=") != np.uint16:
+            return None
+        arrays = [(name, a) for name, a in (("frames", self.frames), ("white", self.white),
+                                            ("black", self.black), ("inverse", self.inverse))
+                  if a is not None and getattr(a, "dtype", None) == dtype]
+        return bit_depth_of(arrays, None)
 
     # -- derived values (computed in one place) -------------------------------------------
     @property

@@ -5,14 +5,17 @@ which no pixel sees the projector raises its subclass `NoPatternContrast`). Arra
 not copied here (the kernels read uint8 / uint16 / float32 / float64 directly) except to make
 them C-contiguous and of the machine's byte order (`native`: a big-endian ``>u2`` capture decodes
 as its values); the only product is a `edge.capture.CodedCapture` whose ``scale``
-(`edge.capture.full_scale`) maps raw values to the normalised range [0, 1].
+(`edge.capture.full_scale`) maps raw values to the normalised range [0, 1].  The bit-depth rule
+(`edge.capture.bit_depth_of`, `edge.capture.DETECTED_DEPTHS`) lives with `CodedCapture`, which
+applies it too; `bit_depth_of` is imported here for `validate` (and `edge.decode.check`,
+`edge.edc.adaptive` read it from here).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..capture import CodedCapture, full_scale
+from ..capture import CodedCapture, bit_depth_of
 from ..codes import Code
 
 #: The message of `NoPatternContrast`.
@@ -91,31 +94,6 @@ def check_samples(arrays: list[tuple[str, np.ndarray]], *, scale_free: bool = Fa
         raise ValueError(f"expected {', '.join(name for name, _ in arrays)} of one dtype, got {given}")
 
 
-#: Bit depths `validate` detects uint16 data as, where none is given: the common ADC widths.
-DETECTED_DEPTHS = (8, 10, 12, 14, 16)
-
-
-def bit_depth_of(arrays: list[tuple[str, np.ndarray]], bit_depth: int | None) -> int | None:
-    """The bit depth of integer samples (None for floats, which are normalised, and for uint8
-    without ``bit_depth``: 8 bits).  ``arrays``: (name, array) pairs of one dtype.  ``bit_depth``
-    where given: an integer that holds every value, 1..8 for uint8 and 1..16 for uint16
-    (`edge.capture.full_scale`); else, for uint16, the smallest of `DETECTED_DEPTHS` whose full
-    scale holds the largest value.  One ValueError naming the problem otherwise."""
-    dtype = arrays[0][1].dtype
-    if bit_depth is not None:
-        full_scale(dtype, bit_depth)  # raises for a non-integer, outside 1..8 (uint8) / 1..16 (uint16)
-    if dtype.kind == "f" or (dtype == np.uint8 and bit_depth is None):
-        return None
-    top = max(int(a.max()) if a.size else 0 for _, a in arrays)
-    if bit_depth is None:
-        return next(b for b in DETECTED_DEPTHS if top <= (1 << b) - 1)
-    if top > (1 << int(bit_depth)) - 1:
-        name = next(n for n, a in arrays if a.size and int(a.max()) == top)
-        raise ValueError(f"{name}: values up to {top} exceed the full scale {(1 << int(bit_depth)) - 1} of "
-                         f"bit_depth={int(bit_depth)}")
-    return int(bit_depth)
-
-
 def validate(
     frames: np.ndarray,
     white: np.ndarray,
@@ -131,11 +109,12 @@ def validate(
     frames (n, H, W) with n == code.n; white, black (H, W); inverse (n, H, W) or None. All arrays
     must share one dtype (uint8, uint16, float32 or float64; either byte order). bit_depth:
     significant bits of integer data, an integer that holds every value, 1..16 for uint16 (None:
-    detected, the smallest of `DETECTED_DEPTHS` that holds the largest value, so that 12-bit data
+    detected, the smallest of `edge.capture.DETECTED_DEPTHS` that holds the largest value, so that 12-bit data
     in uint16 is read as 12-bit and a contrast threshold means the same with and without it) and
     1..8 for uint8 (None: 8); ignored for floats (which must be normalised to [0, 1], unless
     ``scale_free``: for callers whose result does not depend on the intensity scale, the hard
-    decisions of `edge.decode.check`).  `bit_depth_of` is the rule.
+    decisions of `edge.decode.check`).  `edge.capture.bit_depth_of` is the rule (the one
+    `CodedCapture` applies where it is not given a bit depth).
     """
     check_code(code)
     frames = native(np.asarray(frames))
