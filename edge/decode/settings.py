@@ -50,9 +50,11 @@ METHODS = ("hard", "soft", "list", "median", "list+median", "sgm")
 METRIC_NAMES = ("ml", "normalized")
 LEVELS = ("auto", "calibration", "refit")
 VALIDITY = ("auto", "error", "confidence")
-#: Largest sigma_r / sigma_s (normalised units, 1 = full scale): noise ten times the full scale
-#: means no signal, and a larger value overflows the variance's square in float64.
-MAX_SIGMA = 10.0
+#: Largest sigma_r / sigma_s (normalised units, 1 = full scale): the one bound of the noise
+#: sigmas, which the profiles' ``[camera] sigma_r / sigma_s`` take too (`edge.profiles.settings`).
+#: A read-noise or shot-noise sigma of more than the full scale means no signal; the bound also
+#: keeps the variance's square finite in float64 (a sigma of 4e250 overflowed inside decode).
+MAX_SIGMA = 1.0
 
 
 @dataclass(frozen=True)
@@ -83,9 +85,12 @@ class DecodeSettings:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ValueError(f"{name}: expected a finite number, got {v!r}")
-        if not (0 < self.sigma_r <= MAX_SIGMA and 0 <= self.sigma_s <= MAX_SIGMA):
-            raise ValueError(f"sigma_r, sigma_s: expected 0 < sigma_r <= {MAX_SIGMA:g} and 0 <= sigma_s <= {MAX_SIGMA:g} "
-                             f"(normalised units, 1 = full scale), got {self.sigma_r}, {self.sigma_s}")
+        if not 0 < self.sigma_r <= MAX_SIGMA:
+            raise ValueError(f"sigma_r: expected 0 < sigma_r <= {MAX_SIGMA:g} (normalised units, 1 = full scale), "
+                             f"got {self.sigma_r}")
+        if not 0 <= self.sigma_s <= MAX_SIGMA:
+            raise ValueError(f"sigma_s: expected 0 <= sigma_s <= {MAX_SIGMA:g} (normalised units, 1 = full scale), "
+                             f"got {self.sigma_s}")
         for name in ("min_contrast", "min_confidence"):  # a contrast (normalised) and a ratio: [0, 1]
             if not 0 <= getattr(self, name) <= 1:
                 raise ValueError(f"{name}: expected 0..1, got {getattr(self, name)}")

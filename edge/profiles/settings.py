@@ -31,8 +31,9 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     rate_hz = 120.0                       # >= 1 frame per second
     bits = 8                              # 8 | 10 | 12 | 16 (uint8 for 8, uint16 otherwise)
     exposure_us = 8000.0                  # <= 1e6 / rate_hz
-    sigma_r = 0.004                       # read noise, std dev on the [0, 1] intensity scale
-    sigma_s = 0.015                       # shot-noise factor: variance = sigma_r**2 + sigma_s**2 * I
+    sigma_r = 0.004                       # read noise, std dev on the [0, 1] intensity scale (0..1)
+    sigma_s = 0.015                       # shot-noise factor: variance = sigma_r**2 + sigma_s**2 * I (0..1;
+                                          # the bound: edge.decode.settings.MAX_SIGMA)
 
     [code]
     name = "ecc-22-10"                    # edge.codes.get_code name; "" only for dots / line projectors
@@ -125,7 +126,7 @@ import typing
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-from edge.decode.settings import DEFAULT_SETTINGS as _LIB
+from edge.decode.settings import DEFAULT_SETTINGS as _LIB, MAX_SIGMA
 from edge.device import PIPELINES
 
 __all__ = [
@@ -238,8 +239,8 @@ class CameraSettings:
     rate_hz: float = _f(lo=0.0, hi=1e6, lo_open=True)
     exposure_us: float = _f(lo=0.0, lo_open=True)
     bits: int = _f(8, choices=CAMERA_BITS)
-    sigma_r: float = _f(0.0, lo=0.0, hi=1.0)
-    sigma_s: float = _f(0.0, lo=0.0, hi=1.0)
+    sigma_r: float = _f(0.0, lo=0.0, hi=MAX_SIGMA)  # the decoder's bound (0: noiseless, floored in from_profile)
+    sigma_s: float = _f(0.0, lo=0.0, hi=MAX_SIGMA)
 
 
 @dataclass(frozen=True)
@@ -418,13 +419,22 @@ def _check_scalar(tp: Any, value: Any, meta: Mapping[str, Any], source: str, key
     if pattern is not None and not re.fullmatch(pattern, value):
         raise ProfileError(source, key, f"expected a string matching {pattern!r}, got {value!r}")
     lo, hi = meta.get("lo"), meta.get("hi")
-    if lo is not None and (value <= lo if meta.get("lo_open") else value < lo):
-        op = ">" if meta.get("lo_open") else ">="
-        raise ProfileError(source, key, f"expected a value {op} {lo:g}, got {value!r}")
-    if hi is not None and (value >= hi if meta.get("hi_open") else value > hi):
-        op = "<" if meta.get("hi_open") else "<="
-        raise ProfileError(source, key, f"expected a value {op} {hi:g}, got {value!r}")
+    below = lo is not None and (value <= lo if meta.get("lo_open") else value < lo)
+    above = hi is not None and (value >= hi if meta.get("hi_open") else value > hi)
+    if below or above:
+        raise ProfileError(source, key, f"expected a value {_range_text(meta)}, got {value!r}")
     return value
+
+
+def _range_text(meta: Mapping[str, Any]) -> str:
+    """The allowed range of a field's metadata, both ends where it has both: ``>= 0 and <= 1``
+    (integer ends written out, float ends as ``%g``)."""
+    ends = []
+    for end, open_, ops in (("lo", "lo_open", (">", ">=")), ("hi", "hi_open", ("<", "<="))):
+        v = meta.get(end)
+        if v is not None:
+            ends.append(f"{ops[0] if meta.get(open_) else ops[1]} {v if isinstance(v, int) else format(v, 'g')}")
+    return " and ".join(ends)
 
 
 def _build(cls: type, data: Any, source: str, prefix: str) -> Any:
