@@ -8,6 +8,7 @@ from __future__ import annotations
 import pytest
 
 import edge.eval.edc
+import edge.sim.scenes
 from edge.cli import main
 from edge.eval.edc import GI_SCENES, check_gi_size, gi_min_size
 from edge.sim import make_scene
@@ -23,12 +24,17 @@ def _error(capsys, *argv: str) -> str:
     return err[0]
 
 
-def test_the_size_rule_is_the_scene_generators_own():
-    """6x5 builds every scattering scene; one column or one row less fails inside `make_scene`
-    itself (so the rule is neither stricter nor looser than the generator)."""
+def test_the_size_rule_is_the_scene_generators_own(monkeypatch):
+    """6x5 builds every scattering scene; one column or one row less is refused by `make_scene`
+    with its own message, and without the rule fails inside the generator (so the rule is neither
+    stricter nor looser than the generator)."""
     assert SCATTERING == ["scattering", "scatter-s1.5", "scatter-s4", "scatter-s10"]
     for w, h in ((6, 5), (7, 9)):
         make_scene("scattering", w, h)
+    for w, h in ((5, 5), (6, 4)):
+        with pytest.raises(ValueError, match=f"scene 'scattering' needs at least 6x5 pixels, got {w}x{h}"):
+            make_scene("scattering", w, h)
+    monkeypatch.setattr(edge.sim.scenes, "_MIN_SIZE", {})
     for w, h in ((5, 5), (6, 4)):
         with pytest.raises(ValueError, match="high <= 0"):  # numpy's message, naming nothing
             make_scene("scattering", w, h)

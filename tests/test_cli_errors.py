@@ -75,7 +75,7 @@ def test_recordings_are_not_replaced_without_overwrite(capsys, tmp_path):
 def test_bad_numbers_and_sizes(capsys, tmp_path):
     _fails(capsys, "source", "event-demo", "--size", "64x48", "--periods", "0", expect="periods: expected >= 1")
     _fails(capsys, "source", "event-demo", "--size", "64x48", "--flicker", "nan", expect="flicker_hz")
-    _fails(capsys, "edc", "eval", "--size", "4x4", "--out", tmp_path / "edc", expect="at least 8x8")
+    _fails(capsys, "edc", "eval", "--size", "4x4", "--out", tmp_path / "edc", expect="at least 6x5")
     _fails(capsys, "edc", "run", "--size", "100000x100000", expect="at most 16384x16384")
     _fails(capsys, "edc", "run", "--size", "32x24", "--seed", "-1", expect="--seed must be >= 0")  # numpy's text
     _fails(capsys, "edc", "eval", "--size", "8x8", "--seed", "-1", "--out", tmp_path / "e", expect="--seed must be >= 0")
@@ -124,7 +124,7 @@ def test_eval_outputs_that_cannot_be_written_fail_before_the_work(capsys, tmp_pa
     blocker.write_text("x")
     _fails(capsys, "eval", "sweep", "--quick", "--out", blocker / "out", expect="--out")
     _fails(capsys, "eval", "sweep", "--quick", "--out", blocker, expect="is a file; expected a folder")
-    _fails(capsys, "edc", "eval", "--size", "8x8", "--out", blocker / "out", expect="cannot create the folder")
+    _fails(capsys, "edc", "eval", "--size", "8x8", "--out", blocker / "out", expect=f"{blocker} is a file, not a folder")
     assert blocker.read_text() == "x"
 
 

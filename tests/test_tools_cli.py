@@ -27,7 +27,7 @@ def _tool(*argv: str, cwd: Path) -> subprocess.CompletedProcess:
     (("eval_nary.py", "--size", "abc"), "eval_nary.py: error: --size expects WIDTHxHEIGHT"),  # int()'s traceback
     (("eval_posterior.py", "--size", "64", "--out", "p"), "eval_posterior.py: error: --size expects"),
     (("eval_room.py", "--max-devices", "0", "--out", "r"), "eval_room.py: error: --max-devices must be >= 2"),  # IndexError
-    (("eval_edc.py", "--width", "4", "--height", "4", "--out", "e"), "eval_edc.py: error: --width / --height"),
+    (("eval_edc.py", "--width", "4", "--height", "4", "--out", "e"), "eval_edc.py: error: camera 4x4 is too small"),
     (("eval_sweep.py", "--experiments", "bogus", "--out", "s"), "eval_sweep.py: error: unknown experiment 'bogus'"),
     (("foxglove_layout.py", "--out", "missing/layout.json"), "foxglove_layout.py: error: No such file or directory"),
     (("bench_replay_fleet.py", "--files", "0"), "bench_replay_fleet.py: error: --files must be >= 1"),  # IndexError

@@ -9,7 +9,7 @@ import argparse
 from pathlib import Path
 
 from edge.commands._args import output_dir
-from edge.eval.edc import run_report
+from edge.eval.edc import GI_SCENES, check_gi_size, run_report
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -24,8 +24,7 @@ def main(argv: list[str] | None = None) -> int:
     cmd = "python tools/eval_edc.py" + "".join(
         f" --{k} {v}" for k, v in (("width", a.width), ("height", a.height), ("seed", a.seed), ("rounds", a.rounds))
         if v != p.get_default(k))
-    if a.width < 8 or a.height < 8:  # as `edge edc eval`: its scenes need a few pixels of structure
-        raise ValueError(f"--width / --height must be at least 8, got {a.width}x{a.height}")
+    check_gi_size(list(GI_SCENES), a.width, a.height)  # the scene generators' own rule, as `edge edc eval`
     if a.seed < 0:
         raise ValueError(f"--seed must be >= 0, got {a.seed}")
     if a.rounds < 1:

@@ -42,7 +42,7 @@ from ..edc.adaptive import (DEFAULT_MIN_CONTRAST, DEFAULT_MIN_RANGE_SIGMAS, DEFA
                             AdaptiveResult, AdaptiveScan, run_adaptive)
 from ..edc.gupta import EnsembleScheme
 from ..edc.maxminsw import maxminsw_code, stripe_widths
-from ..sim import CameraModel, capture, capture_code, make_scene
+from ..sim import CameraModel, capture, capture_code, make_scene, min_scene_size
 from ..sim.metrics import truth_columns
 from .report import pyplot, save_figure
 
@@ -87,13 +87,6 @@ GI_SCENES: dict[str, dict[str, Any]] = {
 }
 
 
-#: Smallest camera (width, height) in pixels of a scene generator.  `edge.sim.make_scene` takes
-#: 2 x 2; the ``scattering`` generator draws its scattering regions as ellipses with semi-axes of
-#: width/12 .. width/6 and height/12 .. height/5 pixels (integer bounds, upper bound excluded),
-#: an empty range below 6 columns or 5 rows.  The EDC code itself puts no bound on the camera: it
-#: codes projector columns, and every camera pixel is decoded on its own.
-MIN_SCENE_SIZE: dict[str, tuple[int, int]] = {"scattering": (6, 5)}
-_ANY_SCENE_SIZE = (2, 2)
 
 
 def _entry(label: str) -> dict[str, Any]:
@@ -110,7 +103,7 @@ def _base(label: str) -> str:
 
 def gi_min_size(label: str) -> tuple[int, int]:
     """Smallest camera (width, height) in pixels on which GI scene ``label`` can be built."""
-    return MIN_SCENE_SIZE.get(_base(label), _ANY_SCENE_SIZE)
+    return min_scene_size(_base(label))
 
 
 def check_gi_size(labels: str | list[str] | tuple[str, ...], width: int, height: int) -> None:

@@ -15,10 +15,10 @@ from .geometry import DEPTH_RANGE_M, Geometry
 from .metrics import Metrics, depth_from_columns, error_map, error_rate, evaluate
 from .render import capture, capture_code, code_profiles, projector_irradiance
 from .scene import Scene, build_scene
-from .scenes import make_scene, scene_names
+from .scenes import make_scene, min_scene_size, scene_names
 
 __all__ = [
     "CameraModel", "DEPTH_RANGE_M", "Geometry", "Metrics", "SUPPORTED_BITS", "Scene",
     "build_scene", "capture", "capture_code", "code_profiles", "depth_from_columns", "error_map",
-    "error_rate", "evaluate", "make_scene", "projector_irradiance", "scene_names",
+    "error_rate", "evaluate", "make_scene", "min_scene_size", "projector_irradiance", "scene_names",
 ]

@@ -267,9 +267,24 @@ _SCENES: dict[str, tuple[Callable[..., Any], dict[str, Any]]] = {
 }
 
 
+#: Smallest camera (width, height) in pixels of a scene generator, where it is more than 2 x 2:
+#: ``scattering`` draws its scattering regions as ellipses with semi-axes of width/12 .. width/6
+#: and height/12 .. height/5 pixels (integer bounds, upper bound excluded), an empty range below 6
+#: columns or 5 rows.
+_MIN_SIZE: dict[str, tuple[int, int]] = {"scattering": (6, 5)}
+
+
 def scene_names() -> list[str]:
     """Names `make_scene` accepts."""
     return sorted(_SCENES)
+
+
+def min_scene_size(name: str) -> tuple[int, int]:
+    """Smallest camera (width, height) in pixels on which scene ``name`` can be built (2 x 2 for
+    most; ValueError for an unknown name)."""
+    if name not in _SCENES:
+        raise ValueError(f"unknown scene {name!r}; valid scenes: {', '.join(scene_names())}")
+    return _MIN_SIZE.get(name, (2, 2))
 
 
 def make_scene(name: str, width: int = 640, height: int = 480, *, seed: int = 0, geometry: Geometry | None = None,
@@ -281,8 +296,9 @@ def make_scene(name: str, width: int = 640, height: int = 480, *, seed: int = 0,
     """
     if name not in _SCENES:
         raise ValueError(f"unknown scene {name!r}; valid scenes: {', '.join(scene_names())}")
-    if int(width) < 2 or int(height) < 2:
-        raise ValueError(f"scene size must be at least 2x2 pixels, got {width}x{height}")
+    need_w, need_h = min_scene_size(name)
+    if int(width) < need_w or int(height) < need_h:
+        raise ValueError(f"scene {name!r} needs at least {need_w}x{need_h} pixels, got {width}x{height}")
     build, defaults = _SCENES[name]
     allowed = {**_COMMON, **defaults}
     unknown = sorted(set(params) - set(allowed))
