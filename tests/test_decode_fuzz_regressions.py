@@ -3,13 +3,15 @@
 The property: `edge.decode.decode` returns a `Decoded` whose valid pixels all have a column and
 whose confidence is finite everywhere, or raises one ValueError line.
 
-1. ``sigma_r`` far below any noise (7.95e-162, accepted: 0 < sigma_r <= 1) with ``sigma_s = 0``:
+1. ``sigma_r`` far below any noise (7.95e-162, accepted while the bound was 0 < sigma_r <= 1) with ``sigma_s = 0``:
    the per-pixel reciprocal variances of the cost model (``1 / sigma_r**2``, ``1 / (2 sigma_r**2)``
    with inverse frames) overflow to inf once ``sigma_r**2`` is below 1 / DBL_MAX (sigma_r below
    about 7.5e-155; 5.3e-155 with inverse frames), the per-sample costs become inf - inf = NaN, and
    the confidence comes back NaN (distances inf).  Found with ``--full --seed 3`` (hypothesis'
    shrunk example is the nary8-3 case below), on a capture with inverse frames (the "confidence"
-   rule) and on one without under ``validity="confidence"``.
+   rule) and on one without under ``validity="confidence"``.  Fixed by the settings' lower bound
+   `edge.decode.settings.MIN_SIGMA_R` (1e-6): such a sigma is refused by name, and the bound
+   itself decodes with finite confidence (last test).
 """
 
 from __future__ import annotations
@@ -105,3 +107,17 @@ def test_fuzz_examples_below_one_is_one_error_line():
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2
     assert r.stderr.strip() == "faults_fuzz.py: error: --examples must be >= 1, got 0"
+
+
+@pytest.mark.parametrize("inverse", [False, True])
+def test_the_smallest_sigma_r_allowed_decodes_with_finite_confidence(inverse):
+    """At `MIN_SIGMA_R` with sigma_s 0 the cost model stays finite under either rule."""
+    from edge.decode.settings import MIN_SIGMA_R
+
+    code = get_code("gray-10")
+    frames = np.random.default_rng(1).integers(0, 256, (code.n, 4, 5)).astype(np.uint8)
+    for validity in ("confidence", "error"):
+        d = decode(frames, np.full((4, 5), 255, np.uint8), np.zeros((4, 5), np.uint8), code,
+                   inverse=(255 - frames).astype(np.uint8) if inverse else None, sigma_r=MIN_SIGMA_R,
+                   sigma_s=0.0, validity=validity)
+        assert np.all(np.isfinite(d.confidence)) and np.all(d.column[d.valid] >= 0)

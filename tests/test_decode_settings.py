@@ -21,7 +21,7 @@ def test_bad_values_name_the_field():
                      ({"min_contrast": float("nan")}, "min_contrast"), ({"spatial_check": 1}, "spatial_check"),
                      # a huge sigma overflowed its square (OverflowError from inside decode, found by the full fuzz)
                      ({"sigma_s": 4.3e250}, "sigma_s: expected 0 <= sigma_s <= 1 "),
-                     ({"sigma_r": 11.0}, "sigma_r: expected 0 < sigma_r <= 1 "),
+                     ({"sigma_r": 11.0}, "sigma_r: expected 1e-06 <= sigma_r <= 1 "),
                      # beyond float32, cast to inf with a RuntimeWarning inside decode
                      ({"min_contrast": 1e300}, "min_contrast: expected 0..1"),
                      ({"min_confidence": -0.5}, "min_confidence: expected 0..1")):

@@ -18,7 +18,7 @@ from edge.decode.synthetic import make_capture
 from edge.profiles import ProfileError, apply_update, load_profile
 from edge.profiles.settings import CameraSettings
 
-RANGE = {"sigma_r": "sigma_r: expected 0 < sigma_r <= 1 (normalised units, 1 = full scale)",
+RANGE = {"sigma_r": "sigma_r: expected 1e-06 <= sigma_r <= 1 (normalised units, 1 = full scale)",
          "sigma_s": "sigma_s: expected 0 <= sigma_s <= 1 (normalised units, 1 = full scale)"}
 
 
@@ -35,7 +35,7 @@ def test_decode_settings_refuse_a_sigma_above_full_scale(name):
         with pytest.raises(ValueError) as info:
             DecodeSettings(**{name: bad})
         assert str(info.value) == f"{RANGE[name]}, got {bad}"
-    with pytest.raises(ValueError, match=r"^sigma_r: expected 0 < sigma_r <= 1 .*got 0.0$"):
+    with pytest.raises(ValueError, match=r"^sigma_r: expected 1e-06 <= sigma_r <= 1 .*got 0.0$"):
         DecodeSettings(sigma_r=0.0)  # sigma_r > 0: the search divides by the variance
 
 

@@ -23,7 +23,7 @@ Fields (units: normalised intensity, 1 = full scale of the frame dtype):
 * ``max_error`` in (0, 1): the error-probability target of the "error" rule (default 0.01: at
   most about 1 in 100 published columns off by more than one codebook row); method "sgm" uses
   it under either rule (`edge.decode.sgm`).
-* 0 < ``sigma_r`` <= `MAX_SIGMA`, 0 <= ``sigma_s`` <= `MAX_SIGMA`: read + quantisation sigma and shot-noise coefficient
+* `MIN_SIGMA_R` <= ``sigma_r`` <= `MAX_SIGMA`, 0 <= ``sigma_s`` <= `MAX_SIGMA`: read + quantisation sigma and shot-noise coefficient
   (variance = sigma_r**2 + sigma_s**2 * I) of the search; under the "error" rule a prior only
   (the rule fits the noise model from the capture's residuals).
 * ``min_contrast`` in [0, 1]: white - black floor; ``min_confidence`` in [0, 1]: (d2 - d1)/d2 floor (the
@@ -55,6 +55,11 @@ VALIDITY = ("auto", "error", "confidence")
 #: A read-noise or shot-noise sigma of more than the full scale means no signal; the bound also
 #: keeps the variance's square finite in float64 (a sigma of 4e250 overflowed inside decode).
 MAX_SIGMA = 1.0
+#: Smallest sigma_r (normalised units): below about 7.5e-155 the cost model's reciprocal variance
+#: ``1 / sigma_r**2`` overflows float64 and the costs become NaN; 1e-6 is far below any camera's
+#: read and quantisation noise (a 16-bit step's quantisation sigma is 4.4e-6 of full scale) and equals the
+#: variance floor the noise fit keeps for float frames (1e-12, `edge.decode.posterior.fit_noise`).
+MIN_SIGMA_R = 1e-6
 
 
 @dataclass(frozen=True)
@@ -85,8 +90,9 @@ class DecodeSettings:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ValueError(f"{name}: expected a finite number, got {v!r}")
-        if not 0 < self.sigma_r <= MAX_SIGMA:
-            raise ValueError(f"sigma_r: expected 0 < sigma_r <= {MAX_SIGMA:g} (normalised units, 1 = full scale), "
+        if not MIN_SIGMA_R <= self.sigma_r <= MAX_SIGMA:
+            raise ValueError(f"sigma_r: expected {MIN_SIGMA_R:g} <= sigma_r <= {MAX_SIGMA:g} (normalised units, "
+                             "1 = full scale), "
                              f"got {self.sigma_r}")
         if not 0 <= self.sigma_s <= MAX_SIGMA:
             raise ValueError(f"sigma_s: expected 0 <= sigma_s <= {MAX_SIGMA:g} (normalised units, 1 = full scale), "
@@ -108,6 +114,13 @@ class DecodeSettings:
             raise ValueError(f"decoder settings: unknown option(s) {', '.join(unknown)}; "
                              f"expected any of {', '.join(FIELDS)}")
         return dataclasses.replace(self, **changes) if changes else self
+
+    def with_noise(self, a: float, beta: float) -> "DecodeSettings":
+        """A copy whose sigmas are those of a fitted noise model ``var(I) = a + beta * I``
+        (normalised units): ``sqrt(a)``, ``sqrt(beta)``, held to the settings' bounds (a fit on a
+        pathological capture can exceed `MAX_SIGMA`; the capture is still decoded)."""
+        return self.replace(sigma_r=min(max(math.sqrt(max(a, 0.0)), MIN_SIGMA_R), MAX_SIGMA),
+                            sigma_s=min(math.sqrt(max(beta, 0.0)), MAX_SIGMA))
 
     def rule(self, has_inverse: bool) -> str:
         """The validity rule these settings apply to a capture with / without inverse frames:

@@ -197,7 +197,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
             host_on, host_off = _fetch("split_on", on, stream, side), _fetch("split_off", off, stream, side)
         searched = DeviceStack(frames=f32, inverse=inv32, has_inv=ds.has_inv, white=on, black=off, scale=1.0,
                                dtype=np.dtype(np.float32), host_white=host_on, host_black=host_off)
-        s = s.replace(sigma_r=float(np.sqrt(first.a)), sigma_s=float(np.sqrt(first.beta)))
+        s = s.with_noise(first.a, first.beta)
     else:
         searched = ds
     cand, dist, _, st = _search(searched, code, s.method, s, metric, columns, band, stripe, stream, buffers)
