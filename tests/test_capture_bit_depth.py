@@ -125,3 +125,15 @@ def test_detected_depth_is_the_smallest_common_width(top, depth):
     f = np.zeros((2, 2, 3), np.uint16)
     w = np.full((2, 3), top, np.uint16)
     assert CodedCapture(f, w, np.zeros_like(w)).bit_depth == depth == bit_depth_of([("white", w)], None)
+
+
+def test_a_synthetic_uint16_capture_states_the_depth_it_was_quantised_at():
+    """`make_capture` quantises uint16 at 65535 without a bit depth; a dark capture of it must not be
+    read at a detected 14-bit scale (its CodedCapture states 16)."""
+    from edge.codes import get_code
+    from edge.decode.synthetic import make_capture
+
+    cap = make_capture(get_code("gray-10"), np.full((2, 3), 7), rng=np.random.default_rng(0), albedo=0.1,
+                       ambient=0.01, dtype=np.uint16)
+    assert int(max(cap.frames.max(), cap.white.max())) < 2**14  # dark enough to be detected as 14-bit
+    assert cap.bit_depth == 16 and cap.scale == 1 / 65535

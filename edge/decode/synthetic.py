@@ -37,7 +37,8 @@ def make_capture(
 
     Level of symbol s: ambient + albedo * s / (q - 1) (normalised intensity).  Returns a
     `CodedCapture`: frames (n, H, W), white, black (H, W), inverse (n, H, W) or None in `dtype`
-    (integers hold 0 .. full_scale(dtype, bit_depth)); truth (H, W) int64 = columns; equal
+    (integers hold 0 .. full_scale(dtype, bit_depth), and the capture's bit_depth is the one
+    quantised at: the dtype's width when None); truth (H, W) int64 = columns; equal
     frame exposures (relative 1.0); noise = (sigma_r, sigma_s).
     """
     columns = np.asarray(columns, dtype=np.int64)
@@ -56,6 +57,8 @@ def make_capture(
         inv = _quantise(noisy(ambient + alb[None] * (1 - symbols / (code.q - 1))), dtype, bit_depth)
     white = _quantise(noisy(ambient + alb), dtype, bit_depth)
     black = _quantise(noisy(np.full((h, w), ambient)), dtype, bit_depth)
+    if bit_depth is None and np.issubdtype(dtype, np.integer):
+        bit_depth = np.dtype(dtype).itemsize * 8  # as quantised: the dtype's full scale, not a detected depth
     return CodedCapture(frames=frames, white=white, black=black, inverse=inv, code=code, bit_depth=bit_depth,
                         frame_exposure=np.ones(code.n + 2), exposure_unit="relative",
                         noise=NoiseModel(float(sigma_r), float(sigma_s)), truth=columns)
