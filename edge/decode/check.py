@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..capture import CodedCapture, full_scale
+from ..capture import CodedCapture, bit_depth_of, full_scale
 from ..codes import Code
 from ..codes.words import columns_of_words, pack_words
-from .inputs import bit_depth_of, check_samples, codebook_rows, native, validate
+from .inputs import check_samples, codebook_rows, native, validate
 
 
 def _work_dtype(*arrays: np.ndarray) -> type:
@@ -123,7 +123,7 @@ def contrast_error_map(white: np.ndarray, black: np.ndarray, threshold: float, *
 
     white, black: (H, W) calibration frames of one dtype, as for `decode` (uint8, uint16, or
     floats normalised to [0, 1]).  threshold is in normalised intensity: a fraction of the full
-    scale `decode` reads them at (`edge.capture.full_scale` at `edge.decode.inputs.bit_depth_of`:
+    scale `decode` reads them at (`edge.capture.full_scale` at `edge.capture.bit_depth_of`:
     255 for uint8, 2**bit_depth - 1 for uint16, where bit_depth None is detected as the smallest
     of 8, 10, 12, 14, 16 bits holding the largest value, so 12-bit data in uint16 is read at 4095;
     1 for floats), e.g. 40/255 reproduces OpenCV's default black threshold.

@@ -7,8 +7,7 @@ them C-contiguous and of the machine's byte order (`native`: a big-endian ``>u2`
 as its values); the only product is a `edge.capture.CodedCapture` whose ``scale``
 (`edge.capture.full_scale`) maps raw values to the normalised range [0, 1].  The bit-depth rule
 (`edge.capture.bit_depth_of`, `edge.capture.DETECTED_DEPTHS`) lives with `CodedCapture`, which
-applies it too; `bit_depth_of` is imported here for `validate` (and `edge.decode.check`,
-`edge.edc.adaptive` read it from here).
+applies it too; `validate` imports it from there.
 """
 
 from __future__ import annotations

@@ -101,9 +101,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from edge.capture import full_scale
+from edge.capture import bit_depth_of, full_scale
 from edge.codes import Code
-from edge.decode.inputs import bit_depth_of, native
+from edge.decode.inputs import native
 
 from . import _kernels
 from .scheme import EdcScheme, unmeasurable_columns
