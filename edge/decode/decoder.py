@@ -27,8 +27,16 @@ levels from its code frames (`edge.decode.levels`) before the final decode.  The
 within 1 of the median column of the eligible pixels with confidence >= t_high in the 5x5
 neighbourhood (at least 3 voters; `spatial.spatial_support`, columns unchanged).  Pass
 ``spatial_check=False`` for the plain confidence + contrast mask.  "list" and "median" use the
-validity rules of `spatial.order_prior` / `spatial.confidence_median`.  Defaults: `DEFAULTS`
-(chosen on the real OpenCV Gray-code capture, see tests/test_decode_real.py).
+validity rules of `spatial.order_prior` / `spatial.confidence_median`.  Then, for every method
+but "hard", the goodness-of-fit test (`confidence_fit`, `edge.decode.misfit`): a published
+column whose residuals are far beyond the noise is not published.  ``(d2 - d1) / d2`` cannot see
+that the truth is outside the search (a surface beyond the disparity band, columns beyond
+``columns``): there the two best codewords are both wrong and the ratio can be high.  Noise
+model: `edge.decode.posterior.fit_noise` of the search's best candidates; scale: the misfit
+statistic's median over the published pixels; captures too small for the noise fit are not
+tested.  "hard" is left as it is (the test costs several times its decode).  The CUDA backend's
+confidence path (`backends.cuda.pipeline.finish`) does not run this stage yet.  Defaults:
+`DEFAULTS` (chosen on the real OpenCV Gray-code capture, see tests/test_decode_real.py).
 
 `decode` is a composition of five stages, each driven by the one `DecodeSettings`:
 
@@ -39,7 +47,7 @@ validity rules of `spatial.order_prior` / `spatial.confidence_median`.  Defaults
    `Candidates` (top-3 rows, distances, confidence, stats);
 4. spatial methods (`edge.decode.validity.eligibility`, then `edge.decode.spatial.spatial_stage`):
    eligible pixels, the support test or the order prior / median filter, with the stripe width;
-5. validity rule (`edge.decode.validity.valid_mask`): -> column and valid mask.
+5. validity rule (`edge.decode.validity.valid_mask`, then `confidence_fit`): -> column and valid mask.
 
 Under the "error" rule (`_decode_error_rule`) stages 2-5 are the split levels, the search, the
 noise fit and the posterior (`edge.decode.posterior`), then `publish_error_rule` on the host for
@@ -60,7 +68,7 @@ from .backends import Q_SCALE
 from .backends import get as get_backend
 from .inputs import NoPatternContrast, validate
 from .levels import estimate_levels
-from .misfit import check_fit, fits
+from .misfit import check_fit, fit_published, fits
 from .posterior import Noise, fit_noise, normalised32, posterior, split_levels
 from .propagate import propagate
 from .search import METRICS, band_args, check_call, search_candidates
@@ -95,7 +103,9 @@ class Decoded:
         redone with 64-bit keys, see `kernels.soft_band_fold`).  Under the "error" rule it adds
         ``rule``, ``levels``, ``level_source`` ("split", "calibration" or "refit",
         `DecodeSettings.level_source`) and the fitted noise model ``noise_a`` / ``noise_beta`` (variance
-        ``a + beta * I``, normalised units) with ``noise_fitted``.
+        ``a + beta * I``, normalised units) with ``noise_fitted``.  Under the "confidence" rule
+        (every method but "hard", CPU backend) it adds the goodness-of-fit test's
+        ``misfit_noise``, ``misfit_threshold`` and ``misfit_dropped`` (`confidence_fit`).
     error: (H, W) float32 estimated probability that ``candidates[..., 0]`` is more than one
         codebook row off (`edge.decode.posterior`; the "error" validity rule), else None; with
         methods "list" / "median", where the method published another candidate, that
@@ -206,14 +216,47 @@ def _decode(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code
     def top1(st: CodedCapture) -> np.ndarray:
         return search_candidates(st, code, first, columns=ncols, band=band, stripe=stripe).candidates[..., 0]
 
-    stack = estimate_levels(stack, code, s.level_source("confidence", code.q), top1, iterations=iterations)
-    found = search_candidates(stack, code, s, columns=ncols, band=band, stripe=stripe)
-    column0, eligible = eligibility(stack, found.candidates, s.min_contrast)
+    searched = estimate_levels(stack, code, s.level_source("confidence", code.q), top1, iterations=iterations)
+    found = search_candidates(searched, code, s, columns=ncols, band=band, stripe=stripe)
+    column0, eligible = eligibility(searched, found.candidates, s.min_contrast)
     spatial = spatial_stage(s, found.candidates, found.confidence, column0, eligible, stripe=stripe,
                             distances=found.distances, choices=band_choices(ncols, band, stripe), columns=ncols)
     column, valid = valid_mask(spatial, found.confidence, eligible, s)
+    column, valid, fit = confidence_fit(searched, code, s, column0, column)
     return Decoded(column=column, confidence=found.confidence, valid=valid, candidates=found.candidates,
-                   distances=found.distances, stats=found.stats)
+                   distances=found.distances, stats=dict(found.stats, **fit))
+
+
+def confidence_fit(stack: CodedCapture, code: Code, s: DecodeSettings, best: np.ndarray,
+                   column: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The "confidence" rule's goodness-of-fit test (host; every method but "hard"): a published
+    column whose residuals are far beyond the noise is not published (`edge.decode.misfit`).
+
+    Noise model: `edge.decode.posterior.fit_noise` of the search's best candidates ``best``
+    (H, W) int (the error rule's fit, on the samples of ``stack``).  Where it could not be fitted
+    (fewer than `posterior.MIN_FIT_PIXELS` pixels) nothing is tested: the settings' sigma_r /
+    sigma_s weigh this rule's search but are not checked against the capture, and a prior
+    several times below the camera's noise would reject right columns.  Scale and threshold:
+    `misfit.fit_published` over the published pixels.  stack: the `CodedCapture` the search
+    read (the validated capture; with ``levels="refit"`` its float32 frames and refitted levels,
+    `edge.decode.levels`, which stand in for white / black: a calibration frame the refit
+    overruled does not reject the pixel); column (H, W) int32 the rule's columns, -1 where
+    invalid.  Returns (column (H, W) int32, -1 where invalid; valid (H, W) bool; stats:
+    ``misfit_noise`` (a, beta) of the variance ``a + beta * I``, normalised units, or None where
+    not fitted, ``misfit_threshold`` (inf where nothing was tested) and ``misfit_dropped``, the
+    published pixels the test took out; empty for "hard", whose columns are returned as they
+    are)."""
+    column = np.asarray(column, np.int32)
+    if s.method == "hard":  # the fast path: the test would cost several times its decode
+        return column, column >= 0, {}
+    noise = fit_noise(stack.frames, stack.white, stack.black, float(np.float32(stack.scale)), code, best,
+                      prior=(s.sigma_r, s.sigma_s), inverse=stack.inverse)
+    if not noise.fitted:
+        return column, column >= 0, {"misfit_noise": None, "misfit_threshold": float("inf"), "misfit_dropped": 0}
+    valid, threshold = fit_published(stack, code, (noise.a, noise.beta), column)
+    stats = {"misfit_noise": (noise.a, noise.beta), "misfit_threshold": threshold,
+             "misfit_dropped": int((column >= 0).sum() - valid.sum())}
+    return np.where(valid, column, -1).astype(np.int32), valid, stats
 
 
 def band_choices(ncols: int, band: tuple[bool, int, int], stripe: int) -> int:

@@ -28,6 +28,13 @@ Mahalanobis part of its likelihood, so both backends' posterior kernels return i
 (`edge.decode.decoder.publish_error_rule`), and a column a spatial method chose instead is
 scored here (`misfit_statistic`, the same arithmetic).
 
+The "confidence" rule has the same blind spot: its ``(d2 - d1) / d2`` compares the searched
+codewords with each other, so where the truth is outside the search the best two are both
+wrong and the ratio can still be high.  `fit_published` tests its published columns with the
+same statistic, level and scale rule; there is no posterior, so the scale is taken over the
+published pixels themselves, and the noise model is `edge.decode.posterior.fit_noise` of the
+search's best candidates (`edge.decode.decoder.confidence_fit`).
+
 Units: samples normalised (1 = full scale).  Shapes: frames (n, H, W), white / black / best /
 outputs (H, W).
 """
@@ -186,7 +193,25 @@ def check_fit(stack: CodedCapture, code: Code, noise: tuple[float, float], colum
 def fits(stack: CodedCapture, code: Code, noise: tuple[float, float], column: np.ndarray, threshold: float) -> np.ndarray:
     """(H, W) bool: where ``column`` (-1 = none: False) explains the samples (statistic at or below
     ``threshold``, `check_fit`'s)."""
+    return _within(column, statistic_of(stack, code, noise, column), threshold)
+
+
+def fit_published(stack: CodedCapture, code: Code, noise: tuple[float, float],
+                  column: np.ndarray) -> tuple[np.ndarray, float]:
+    """The test of published columns on their own (the "confidence" rule, which has no P(wrong)):
+    (fits (H, W) bool: ``column >= 0`` and its statistic at or below the threshold; threshold:
+    `misfit_threshold` over the statistics of the published pixels, ``column >= 0``).  stack: the
+    validated `CodedCapture`; column (H, W) int codebook rows, -1 = not published; noise (a,
+    beta) of the variance ``a + beta * I`` (normalised units).  Pixels with a sample at full
+    scale are not tested (NaN statistic: they fit)."""
+    column = np.asarray(column)
     stat = statistic_of(stack, code, noise, column)
+    threshold = misfit_threshold(stat[column >= 0], samples_per_pixel(stack))
+    return _within(column, stat, threshold), threshold
+
+
+def _within(column: np.ndarray, stat: np.ndarray, threshold: float) -> np.ndarray:
+    """(H, W) bool: a column (>= 0) whose statistic is not above ``threshold`` (NaN: untested, fits)."""
     with np.errstate(invalid="ignore"):
         return (np.asarray(column) >= 0) & ~(stat > threshold)
 
