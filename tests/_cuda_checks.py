@@ -117,6 +117,27 @@ def check_decode(name, code_name, *, h, w, dtype=np.uint8, inverse=False, **opts
     emit(name, ok and int(ref.valid.sum()) > 0, detail + f" valid {int(ref.valid.sum())} path {got.stats['path']}")
 
 
+def check_confidence_fit(name, code_name, *, h, w, **opts):
+    """The "confidence" rule's goodness-of-fit test (`decoder.confidence_fit`) on the device path
+    (`pipeline._confidence_fit`): on a capture with enough pixels for its noise fit the CUDA
+    decode gives the CPU's fields bit for bit and the same misfit noise / threshold / dropped
+    count; the test ran (noise fitted) and the device's best candidates went to the host."""
+    code = get_code(code_name)
+    cap, white, black = capture(code, h, w, band_center=4, dark=0.05)
+    kw = dict(min_disparity=0, max_disparity=8, validity="confidence", **opts)
+    ref = decode(cap.frames, white, black, code, backend="cpu", **kw)
+    with Downloads() as dl:
+        got = decode(cap.frames, white, black, code, backend="cuda", **kw)
+    ok, detail = same_arrays([getattr(ref, f) for f in FIELDS], [getattr(got, f) for f in FIELDS])
+    keys = ("misfit_noise", "misfit_threshold", "misfit_dropped")
+    same_stats = all(ref.stats.get(k) == got.stats.get(k) for k in keys)
+    refit = opts.get("levels") == "refit"
+    ok &= same_stats and ref.stats.get("misfit_noise") is not None and "column0" in dl.names
+    ok &= ("refit_white" in dl.names) == refit and int(ref.valid.sum()) > 0
+    emit(name, ok, detail + f" stats cpu {[ref.stats.get(k) for k in keys]} cuda {[got.stats.get(k) for k in keys]}"
+                            f" downloaded {dl.names}")
+
+
 #: Tolerance of the error rule's float outputs, device vs CPU: relative 1e-6 (distances are
 #: negative log-likelihoods, error a probability); exact under the simulator (same float64 ops,
 #: the CPU's log / exp), last-bit differences of the device's log / exp on a GPU.
@@ -843,6 +864,11 @@ def main() -> int:
                                                           dtype=np.uint16, method="hard", levels="refit")),
         ("decode-soft-inverse-nocheck", lambda: check_decode("decode-soft-inverse-nocheck", "gray-10", h=b[0], w=b[1],
                                                              inverse=True, spatial_check=False)),
+        ("confidence-fit-soft", lambda: check_confidence_fit("confidence-fit-soft", "ecc-22-10", h=24, w=24)),
+        ("confidence-fit-soft-refit", lambda: check_confidence_fit("confidence-fit-soft-refit", "ecc-22-10", h=24,
+                                                                   w=24, levels="refit")),
+        ("confidence-fit-list+median", lambda: check_confidence_fit("confidence-fit-list+median", "ecc-22-10", h=24,
+                                                                    w=24, method="list+median")),
         ("error-rule-ecc-22-10-band", lambda: check_error_rule("error-rule-ecc-22-10-band", "ecc-22-10", h=b[0],
                                                                w=b[1])),
         ("error-rule-ecc-22-10-all", lambda: check_error_rule("error-rule-ecc-22-10-all", "ecc-22-10", h=s[0], w=s[1],

@@ -66,6 +66,7 @@ CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inverse"
           "soft-nary3-6", "hard-metric-search-gray-10", "hard-ecc-22-10", "hard-ecc-22-10-inverse-band", "hard-gray-10",
           "validity", "refit-kernels-ecc-22-10", "refit-kernels-rs16-15-4", "decode-soft", "decode-hard",
           "decode-list+median", "decode-soft-refit", "decode-hard-refit-uint16", "decode-soft-inverse-nocheck",
+          "confidence-fit-soft", "confidence-fit-soft-refit", "confidence-fit-list+median",
           "error-rule-ecc-22-10-band", "error-rule-ecc-22-10-all", "error-rule-gray-10-inverse-band",
           "error-rule-ecc-22-10-inverse-all", "error-rule-gray-10-uint16-median",
           "error-rule-ecc-22-10-hard-calibration", "error-rule-nary3-6",
@@ -89,7 +90,8 @@ CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inverse"
 CI_CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inverse",
              "soft-band-ecc-22-10-uint16", "soft-band-gray-10-bitdepth-normalized", "soft-nary3-6",
              "hard-ecc-22-10", "hard-gray-10", "validity", "refit-kernels-ecc-22-10", "decode-hard",
-             "decode-soft-inverse-nocheck", "staging", "reduced-download",
+             "decode-soft-inverse-nocheck", "confidence-fit-soft", "confidence-fit-list+median", "staging",
+             "reduced-download",
              "staged-frames", "runtime-error-rule", "posterior-prior-ecc-22-10", "error-rule-ecc-22-10-band",
              "prior-cost"]
 RUN_CHECKS = CHECKS if os.environ.get("EDGE_CUDA_CHECKS") == "full" else CI_CHECKS
