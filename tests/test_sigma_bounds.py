@@ -91,10 +91,6 @@ def _steep_noise_capture():
     return code, vals[:n], vals[n], vals[n + 1]
 
 
-@pytest.mark.xfail(strict=True, raises=ValueError, reason=(
-    "edge/decode/decoder.py _decode_error_rule puts the split fit's sigmas back through "
-    "DecodeSettings.replace; a fitted sqrt(beta) above MAX_SIGMA raises there until decoder.py "
-    "clamps them to MAX_SIGMA (remove this mark then)"))
 def test_a_fitted_noise_above_the_bound_does_not_refuse_the_capture():
     from edge.decode.posterior import split_levels
 

@@ -151,7 +151,7 @@ def decode(
     projector columns per codebook row (an integer >= 1).  bit_depth: significant bits of
     integer frames, an integer that holds every value (uint16: None = detected from the data,
     the smallest of 8, 10, 12, 14, 16 bits that holds its largest value; uint8: None = 8;
-    ignored for floats; `edge.decode.inputs.bit_depth_of`).  Either byte order.  Returns a
+    ignored for floats; `edge.capture.bit_depth_of`).  Either byte order.  Returns a
     `Decoded` of (H, W) arrays (see there for dtypes and units).  Bad input raises one ValueError
     naming it (`NoPatternContrast` where white <= black everywhere); a `code` or `settings` of
     the wrong type one TypeError.
@@ -284,7 +284,7 @@ def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, nc
         on, off, first_noise = split_levels(stack.frames, stack.white, stack.black, float(scale),
                                             prior=(s.sigma_r, s.sigma_s), inverse=stack.inverse)
         searched = split_capture(stack, on, off)
-        s = s.replace(sigma_r=float(np.sqrt(first_noise.a)), sigma_s=float(np.sqrt(first_noise.beta)))
+        s = s.with_noise(first_noise.a, first_noise.beta)
     else:
         searched = stack
     found = search_candidates(searched, code, s, columns=ncols, band=band, stripe=stripe)
