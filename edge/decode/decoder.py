@@ -252,11 +252,16 @@ def confidence_fit(stack: CodedCapture, code: Code, s: DecodeSettings, best: np.
     noise = fit_noise(stack.frames, stack.white, stack.black, float(np.float32(stack.scale)), code, best,
                       prior=(s.sigma_r, s.sigma_s), inverse=stack.inverse)
     if not noise.fitted:
-        return column, column >= 0, {"misfit_noise": None, "misfit_threshold": float("inf"), "misfit_dropped": 0}
+        return column, column >= 0, untested_fit()
     valid, threshold = fit_published(stack, code, (noise.a, noise.beta), column)
     stats = {"misfit_noise": (noise.a, noise.beta), "misfit_threshold": threshold,
              "misfit_dropped": int((column >= 0).sum() - valid.sum())}
     return np.where(valid, column, -1).astype(np.int32), valid, stats
+
+
+def untested_fit() -> dict:
+    """`confidence_fit`'s stats where its noise could not be fitted: nothing was tested."""
+    return {"misfit_noise": None, "misfit_threshold": float("inf"), "misfit_dropped": 0}
 
 
 def band_choices(ncols: int, band: tuple[bool, int, int], stripe: int) -> int:

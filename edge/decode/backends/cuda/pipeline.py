@@ -25,7 +25,7 @@ from ....capture import CodedCapture
 from ....codes import Code
 from ... import kernels
 from ...inputs import validate
-from ...posterior import MIN_FIT_PIXELS
+from ...posterior import MIN_FIT_PIXELS, normalised32
 from ...search import METRICS, band_args, check_call
 from ...settings import DecodeSettings
 from . import posterior as post_k
@@ -85,8 +85,7 @@ def decode_device(ds: DeviceStack, code: Code, s: DecodeSettings, *, columns: in
     if s.rule(ds.has_inv) == "error":
         return error_device(ds, code, s, metric, columns=columns, band=band, stripe=stripe, stream=stream,
                             buffers=buffers)
-    refit = s.levels == "refit"
-    if refit:
+    if s.levels == "refit":
         ds = refit_stack(ds, code, s, metric, columns=columns, band=band, stripe=stripe, stream=stream,
                          buffers=buffers)
     cand, dist, conf, st = _search(ds, code, s.method, s, metric, columns, band, stripe, stream, buffers)
@@ -100,8 +99,8 @@ def decode_device(ds: DeviceStack, code: Code, s: DecodeSettings, *, columns: in
 
     out = {"candidates": cand, "distances": dist, "confidence": conf, "column0": col0, "eligible": elig,
            "stats": st, "choices": band_choices(columns, band, stripe), "rows": columns}
-    if refit:  # the goodness-of-fit test (`finish`) reads the levels the search used
-        out["refit_levels"] = (ds.white, ds.black)
+    if s.levels == "refit":  # the goodness-of-fit test (`finish`) reads the levels the search used
+        out["refit_white"], out["refit_black"] = ds.white, ds.black
     if s.method in ("soft", "hard"):
         column = buffer(buffers, "column", (h, w), np.int32, stream)
         valid = buffer(buffers, "valid", (h, w), np.bool_, stream)
@@ -313,7 +312,7 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     codebook row (the spatial filters work in projector pixels).  stack, code: the host capture
     and its code (method "sgm" under the "error" rule: `edge.decode.decoder.sgm_stage` scores
     the neighbours' columns on the host samples)."""
-    from ...decoder import Decoded
+    from ...decoder import Decoded, untested_fit
     from ...spatial import spatial_stage
     from ...validity import valid_mask
 
@@ -321,9 +320,10 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     rule = out.get("rule", "confidence")
     # the confidence rule's goodness-of-fit test (`decoder.confidence_fit`, host) needs the best
     # candidate where its noise fit can run at all (a capture of >= MIN_FIT_PIXELS pixels)
-    fit = rule == "confidence" and s.method != "hard" and out["column0"].size >= MIN_FIT_PIXELS
+    tested = rule == "confidence" and s.method != "hard"
+    fit = tested and out["column0"].size >= MIN_FIT_PIXELS
     if s.method in ("soft", "hard"):
-        names = [f for f in FIELDS if f in want or (rule == "error" and f in ("column", "valid"))]
+        names = [f for f in FIELDS if f in want or ((rule == "error" or fit) and f in ("column", "valid"))]
         if fit:
             names.append("column0")
     elif rule == "error":
@@ -333,6 +333,8 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
             ["distances"] if "distances" in want or s.method == "sgm" else [])
     if rule == "error":
         names += ["error", "misfit"]
+    if fit and "refit_white" in out:  # the refitted on / off levels (float32) the search read
+        names += ["refit_white", "refit_black"]
     host = {k: to_host(k, out[k], stream) for k in names}
     if stream != 0:
         stream.synchronize()
@@ -340,13 +342,7 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     if t0 is not None:
         st["seconds"] = time.perf_counter() - t0
     side = st.pop("side_downloads", [])
-    levels = out.get("refit_levels") if fit else None
-    if levels is not None:  # the refitted on / off levels (float32) the search read
-        host.update(refit_white=to_host("refit_white", levels[0], stream),
-                    refit_black=to_host("refit_black", levels[1], stream))
-        if stream != 0:
-            stream.synchronize()
-    st["downloaded"] = [k for k, _ in side] + list(host)
+    st["downloaded"] = [k for k, _ in side] + list(names)
     st["download_bytes"] = int(sum(a.nbytes for a in host.values())) + int(sum(b for _, b in side))
     if rule == "error":
         # the goodness-of-fit test and the method, on the host (`decoder.publish_error_rule`, as
@@ -373,36 +369,32 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
                                 stripe=stripe, distances=host.get("distances"), choices=out.get("choices"),
                                 columns=out.get("rows"))
         column, valid = valid_mask(spatial, host["confidence"], host["eligible"], s)
-    if rule == "confidence":
-        column, valid = _confidence_fit(out, s, host, column, valid, levels, stack, code)
+    if fit:
+        column, valid = _confidence_fit(st, s, host, column, stack, code)
+    elif tested:  # too few pixels for the noise fit: nothing tested
+        st.update(untested_fit())
     got = {"column": column, "valid": valid, "confidence": host.get("confidence"),
            "candidates": host.get("candidates"), "distances": host.get("distances")}
     return Decoded(**{f: (got[f] if f in want else None) for f in FIELDS}, stats=st, error=host.get("error"))
 
 
-def _confidence_fit(out: dict[str, Any], s: DecodeSettings, host: dict[str, np.ndarray], column: np.ndarray | None,
-                    valid: np.ndarray | None, levels: Any, stack: CodedCapture | None,
-                    code: Code | None) -> tuple[np.ndarray | None, np.ndarray | None]:
+def _confidence_fit(st: dict[str, Any], s: DecodeSettings, host: dict[str, np.ndarray], column: np.ndarray,
+                    stack: CodedCapture | None, code: Code | None) -> tuple[np.ndarray, np.ndarray]:
     """The confidence rule's goodness-of-fit test on the host, as the CPU backend runs it
     (`edge.decode.decoder.confidence_fit` on the capture the search read: the host ``stack``, or
-    with ``levels="refit"`` its frames as float32 normalised and the device's refitted levels).
-    Adds its stats (``misfit_noise`` / ``misfit_threshold`` / ``misfit_dropped``) to out's stats;
-    on a capture under `MIN_FIT_PIXELS` pixels they are those of a fit that could not run."""
+    with ``levels="refit"`` its frames as float32 normalised and the device's refitted levels
+    ``host["refit_white"]`` / ``host["refit_black"]``), from the device's best candidates
+    ``host["column0"]``.  Adds its stats (``misfit_noise`` / ``misfit_threshold`` /
+    ``misfit_dropped``) to ``st``."""
     from ...decoder import confidence_fit
 
-    if s.method == "hard" or column is None:
-        return column, valid
-    st = out["stats"]
-    if out["column0"].size < MIN_FIT_PIXELS:  # too few pixels for the noise fit: nothing tested
-        st.update(misfit_noise=None, misfit_threshold=float("inf"), misfit_dropped=0)
-        return column, valid
     if stack is None or code is None:
         raise ValueError("finish: the 'confidence' rule's goodness-of-fit test needs the host stack and its code")
     searched = stack
-    if levels is not None:
-        f = stack.frames.astype(np.float32) * np.float32(stack.scale)
-        searched = validate(f, host.pop("refit_white"), host.pop("refit_black"), code, scale_free=True)
-    column, valid, stats = confidence_fit(searched, code, s, host.pop("column0"), column)
+    if "refit_white" in host:
+        searched = validate(normalised32(stack.frames, stack.scale), host["refit_white"], host["refit_black"], code,
+                            scale_free=True)
+    column, valid, stats = confidence_fit(searched, code, s, host["column0"], column)
     st.update(stats)
     return column, valid
 
