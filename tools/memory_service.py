@@ -37,7 +37,6 @@ import ctypes.util
 import gc
 import os
 import re
-import socket
 import subprocess
 import sys
 import tempfile
@@ -51,6 +50,9 @@ from typing import Any, Callable, Iterable
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from soak_service import free_port  # noqa: E402
 MB = float(1 << 20)
 
 
@@ -146,7 +148,9 @@ def _children(obj: Any) -> Iterable[Any]:
 
 def arrays_under(root: Any, seen: set[int], *, depth: int = 8) -> dict[int, np.ndarray]:
     """{id: array} of the buffer-owning arrays reachable from ``root`` through attributes and
-    containers (not through modules, classes, functions or objects already in ``seen``)."""
+    containers (not through modules, classes, functions or objects already in ``seen``); adds
+    what it visits and every buffer it counts to ``seen``, so a later call (or a view of a
+    counted buffer) does not count that buffer again."""
     found: dict[int, np.ndarray] = {}
     todo = [(root, 0)]
     while todo:
@@ -209,12 +213,8 @@ def census(service: Any, exclude: set[int]) -> list[tuple[str, dict[int, np.ndar
         ("sinks (zenoh publisher, console)", service.sinks),
         ("recorder", service.recorder),
     ]
-    seen: set[int] = set(exclude)
-    out = []
-    for label, root in owners:
-        found = {k: v for k, v in arrays_under(root, seen).items() if k not in exclude}
-        seen.update(found)
-        out.append((label, found))
+    seen: set[int] = set(exclude)  # arrays_under adds every buffer it counts: the first owner wins
+    out = [(label, arrays_under(root, seen)) for label, root in owners]
     out.append(("other arrays (module caches, reached by gc only)", gc_arrays(seen)))
     return out
 
@@ -252,12 +252,6 @@ def decode_working_set(pipeline: Any, stack: Any, top: int) -> tuple[float, list
 
 
 # ----------------------------------------------------------------------------- the run
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def subscriber(port: int, device: str, seconds: float) -> subprocess.Popen:
     """A child process that receives depth from the service for ``seconds``."""
     code = ("import time\nfrom edge.io.zenoh import DepthSubscriber\n"
@@ -477,14 +471,9 @@ def report(result: dict[str, Any], args: argparse.Namespace) -> None:
 
 def limit_arenas(n: int) -> bool:
     """glibc ``mallopt(M_ARENA_MAX, n)`` (n > 0; before threads start); False off glibc or for 0."""
-    if n <= 0:
+    if n <= 0 or LIBC is None:
         return False
-    try:
-        mallopt = ctypes.CDLL(None).mallopt
-    except (OSError, AttributeError):
-        return False
-    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
-    return bool(mallopt(-8, n))  # M_ARENA_MAX (malloc.h)
+    return bool(LIBC.mallopt(-8, n))  # M_ARENA_MAX (malloc.h)
 
 
 def main() -> int:
