@@ -1,7 +1,7 @@
 """Where `decode()`'s time goes under the default error rule, stage by stage, and what the
 error rule's tail mass costs and on which pixels.
 
-    python tools/profile_decode.py [--repeats 5] [--height 600 --width 700] [--seed 0]
+    python tools/profile_decode.py [--repeats 5] [--height 600 --width 700] [--seed 0] [--real DIR]
 
 Inputs: `tools/bench_decode.py`'s two 600 x 700 captures of ecc-22-10 (the high-SNR "easy" one
 and the "hard" regime: fixed total exposure, ambient = projector, 12-bit), each decoded over all
@@ -19,6 +19,11 @@ many of them end with P(wrong) >= 1/2, and how many have P(not lit) >= 1/2, wher
 `posterior._tail_pass` leaves the tail out (P(wrong) is >= 1/2 whatever it adds).  It then times
 `posterior()` alone as it is and with no tail at all (a binary code without tail tables: a
 timing, not a decoder).
+
+Real-capture table (``--real``, where present): the real Gray-code capture with `decode()`'s
+defaults, which with inverse frames run the "confidence" rule: the whole call, the search, the
+goodness-of-fit test (`decoder.confidence_fit`) and its two parts, and the whole call without the
+test (the rule as it was before it), as a ratio.
 """
 
 from __future__ import annotations
@@ -45,11 +50,20 @@ from edge.decode import decode  # noqa: E402
 STAGES = ("split_levels", "split_capture", "search_candidates", "fit_noise", "posterior", "publish_error_rule")
 
 
+#: The confidence rule's stages timed on the real capture (`decoder._decode`), and the two parts
+#: of its goodness-of-fit test (`decoder.confidence_fit`: the noise fit, the test of the published
+#: columns), which are inside confidence_fit's time.
+CONFIDENCE_STAGES = ("search_candidates", "confidence_fit")
+FIT_PARTS = ("fit_noise", "fit_published")
+#: The real capture (OpenCV Gray-code layout, 1024 x 768 projector) beside the repository.
+REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "procam-graycode" / "capture_0"
+
+
 @contextlib.contextmanager
-def stage_timer(seconds: dict[str, list[float]]):
-    """Wrap `STAGES` in `edge.decode.decoder` so that each call appends its wall seconds to
+def stage_timer(seconds: dict[str, list[float]], names: tuple[str, ...] = STAGES):
+    """Wrap ``names`` in `edge.decode.decoder` so that each call appends its wall seconds to
     ``seconds[name]``; the originals are restored on exit."""
-    originals = {name: getattr(decoder, name) for name in STAGES}
+    originals = {name: getattr(decoder, name) for name in names}
 
     def timed(name, fn):
         def call(*args, **kwargs):
@@ -87,6 +101,36 @@ def stage_rows(label: str, call, repeats: int) -> None:
     rest = total - sum(parts.values())
     cells = " | ".join(f"{parts.get(k, 0.0):.1f}" for k in STAGES)
     print(f"| {label} | {total:.1f} | {cells} | {rest:.1f} |")
+
+
+def real_rows(folder: Path, repeats: int) -> None:
+    """The real capture with `decode()`'s defaults (pattern + inverse frames: the confidence
+    rule): the whole call, the search, the goodness-of-fit test and its two parts (medians, ms),
+    and the whole call with the test replaced by the identity (the rule as it was before it)."""
+    from edge.decode import load_opencv_graycode
+
+    cap = load_opencv_graycode(folder, (1024, 768))
+    call = lambda: decode(cap.frames, cap.white, cap.black, cap.code, columns=cap.columns,  # noqa: E731
+                          inverse=cap.inverse)
+    call()
+    seconds: dict[str, list[float]] = {}
+    with stage_timer(seconds, CONFIDENCE_STAGES + FIT_PARTS):
+        total = median_ms(call, repeats)
+    parts = {k: 1e3 * statistics.median(v[1:]) for k, v in seconds.items()}  # v[0]: the warm-up call
+    fit = decoder.confidence_fit
+    decoder.confidence_fit = lambda stack, code, s, best, column: (column, column >= 0, {})
+    try:
+        without = median_ms(call, repeats)
+    finally:
+        decoder.confidence_fit = fit
+    h, w = cap.white.shape
+    print(f"\nReal capture ({folder.name}, {h} x {w}, gray-10 pattern + inverse), decode() defaults "
+          f"(the confidence rule); medians in ms:\n")
+    print("| whole | search_candidates | confidence_fit | of it: fit_noise | of it: fit_published | "
+          "whole without the fit | ratio |")
+    print("|---|---|---|---|---|---|---|")
+    print(f"| {total:.1f} | {parts['search_candidates']:.1f} | {parts['confidence_fit']:.1f} | "
+          f"{parts['fit_noise']:.1f} | {parts['fit_published']:.1f} | {without:.1f} | {total / without:.2f} |")
 
 
 def captured_posterior_args(call):
@@ -155,7 +199,10 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=5, help="timed calls per row, the median reported (default %(default)s)")
     ap.add_argument("--height", type=int, default=600, help="image height of the inputs in pixels (default %(default)s)")
     ap.add_argument("--width", type=int, default=700, help="image width of the inputs in pixels (default %(default)s)")
-    ap.add_argument("--seed", type=int, default=0, help="seed of both inputs")
+    ap.add_argument("--seed", type=int, default=0, help="seed of both inputs (default %(default)s)")
+    ap.add_argument("--real", type=Path, default=REAL,
+                    help="OpenCV Gray-code capture folder for the real-capture table, skipped if absent "
+                         "(default ../shared/data/procam-graycode/capture_0)")
     args = ap.parse_args(argv)
     h, w = args.height, args.width
     code, _, easy = make_input(h, w, 128, args.seed)
@@ -173,6 +220,10 @@ def main(argv=None) -> int:
         max_disparity=band[1]), args.repeats)
     print("\nThe tail mass, hard regime, all codewords:\n")
     tail_rows(hcode, hard, args.repeats)
+    if args.real.is_dir():
+        real_rows(args.real, args.repeats)
+    else:
+        print(f"\n(real capture not found at {args.real}: its table is skipped)")
     return 0
 
 
