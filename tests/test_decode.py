@@ -23,6 +23,8 @@ from edge.decode.kernels import LANES, METRIC_ML, METRIC_NORMALIZED
 from edge.decode.synthetic import make_capture
 
 SR, SS = 0.01, 0.03
+#: reference cost of a column that is not a candidate (outside the pixel's disparity band)
+NOT_A_CANDIDATE = 1e30
 
 
 def reference_costs(frames, white, black, code, *, inverse=None, metric="ml", sr=SR, ss=SS):
@@ -60,7 +62,14 @@ def check_exact(d: Decoded, costs: np.ndarray, tol: float) -> None:
     order = np.argsort(costs, axis=-1, kind="stable")
     best = np.take_along_axis(costs, order[..., :1], -1)[..., 0]
     got = d.candidates
-    got_cost = np.take_along_axis(costs, got, -1)
+    # a slot without a candidate (-1, distance inf: fewer than three columns in the pixel's
+    # disparity band, at the image's edge) stands where the reference has none either (callers
+    # give columns outside the band a cost >= NOT_A_CANDIDATE)
+    none = got < 0
+    ranked = np.take_along_axis(costs, order[..., :3], -1)
+    assert np.all(ranked[none] >= NOT_A_CANDIDATE), "a candidate slot is empty where the reference has one"
+    assert np.all(np.isinf(d.distances[none])), "an empty candidate slot has a finite distance"
+    got_cost = np.where(none, ranked, np.take_along_axis(costs, np.where(none, 0, got), -1))
     # argmax: same column, or a reference tie within quantisation tolerance
     same = got[..., 0] == order[..., 0]
     assert np.all(same | (got_cost[..., 0] - best <= tol)), "argmax differs from brute force"
@@ -74,7 +83,7 @@ def check_exact(d: Decoded, costs: np.ndarray, tol: float) -> None:
     assert np.all(set_same | (c4 - c3 <= tol)), "top-3 set differs from brute force"
     assert np.all(got_cost <= c3[..., None] + tol)
     # reported distances are the reference distances (up to quantisation)
-    assert np.allclose(d.distances, got_cost, atol=tol, rtol=1e-4)
+    assert np.allclose(d.distances[~none], got_cost[~none], atol=tol, rtol=1e-4)
 
 
 @pytest.mark.parametrize("name,dtype,inverse", [
@@ -232,6 +241,13 @@ def test_band_restricts_candidates_and_stays_exact():
     ref = np.where(out, np.inf, costs)[:, 70:]
     check_exact(Decoded(d.column[:, 70:], d.confidence[:, 70:], d.valid[:, 70:], d.candidates[:, 70:],
                         d.distances[:, 70:]), ref, tol=code.n / Q_SCALE[METRIC_ML])
+    # near the image's left edge the band holds fewer than three columns (x = lo_d: one, column
+    # 0): the empty slots are -1 with distance inf, and the rest is exact
+    edge = slice(lo_d, 70)
+    ref_edge = np.where(out, NOT_A_CANDIDATE, costs)[:, edge]
+    assert (d.candidates[:, lo_d, 1:] == -1).all() and (d.candidates[:, lo_d + 1, 2] == -1).all()
+    check_exact(Decoded(d.column[:, edge], d.confidence[:, edge], d.valid[:, edge], d.candidates[:, edge],
+                        d.distances[:, edge]), ref_edge, tol=code.n / Q_SCALE[METRIC_ML])
     # a wide band (> brute-force limit) goes through the pruned enumeration and is exact too
     d2 = decode(cap.frames, cap.white, cap.black, code, min_disparity=-400, max_disparity=hi_d)
     lo = np.maximum(cand_x - hi_d, 0)
