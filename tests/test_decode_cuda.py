@@ -188,6 +188,49 @@ else:
     assert "OK backend 'cuda': not installed here" in proc.stdout
 
 
+def test_a_device_numba_cuda_cannot_compile_for_is_unavailable_with_the_reason():
+    """A device is present but numba-cuda's lowering fails to import (numba-cuda 0.30.4 under
+    numpy 2.5, seen on an H200: every kernel then fails): "cuda" is unavailable, "auto" decodes
+    on the CPU and logs why, backend "cuda" is one ValueError with the reason.  Where the
+    lowering imports (this environment), the probe finds no problem."""
+    if not HAVE_NUMBA_CUDA:
+        pytest.skip("numba-cuda is not installed (pip install 'edge[gpu]')")
+    script = r"""
+import importlib, logging, io
+import numpy as np
+from edge.decode.backends import available, get, resolve
+from edge.decode.backends import cuda as gpu
+assert gpu._compiler_problem() is None, gpu._compiler_problem()  # the real probe, here
+gpu._COMPILER.clear()
+gpu.cuda.is_available = lambda: True  # the driver reports a device
+real = importlib.import_module
+def broken(name, *a):
+    if name == "numba.cuda.cudaimpl":
+        raise AttributeError("module 'numpy' has no attribute 'row_stack'")
+    return real(name, *a)
+importlib.import_module = broken
+log = io.StringIO()
+logging.getLogger("edge.decode").addHandler(logging.StreamHandler(log))
+logging.getLogger("edge.decode").setLevel(logging.INFO)
+assert not gpu.is_available() and not available("cuda")
+assert "cannot compile kernels with numpy" in gpu.why_unavailable(), gpu.why_unavailable()
+assert resolve("auto") == "cpu"
+assert "row_stack" in log.getvalue() and "decoding on the CPU" in log.getvalue(), log.getvalue()
+try:
+    get("cuda")
+except ValueError as e:
+    assert str(e).startswith("backend 'cuda': numba-cuda") and "numpy < 2.5" in str(e), e
+    print("OK", e)
+else:
+    raise SystemExit("backend 'cuda' with a broken numba-cuda did not raise")
+"""
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    env.pop("NUMBA_ENABLE_CUDASIM", None)
+    proc = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "OK backend 'cuda': numba-cuda" in proc.stdout
+
+
 def test_profile_backend_reaches_the_decoder():
     """A profile's ``[decoder] backend`` is the settings' backend (what the runtime decodes with)."""
     from edge.decode.settings import DEFAULT_SETTINGS

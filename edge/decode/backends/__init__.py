@@ -61,8 +61,17 @@ def resolve(name: str) -> str:
         return "cuda"
     if not _FELL_BACK:  # one line per process, not one per stack
         _FELL_BACK.append(True)
-        log.info("decoder backend auto: no CUDA device, decoding on the CPU")
+        log.info("decoder backend auto: %s, decoding on the CPU", _cuda_reason())
     return "cpu"
+
+
+def _cuda_reason() -> str:
+    """Why "auto" did not pick CUDA: the backend's own reason where it imports, else its import error."""
+    try:
+        mod = importlib.import_module(_MODULES["cuda"])
+    except ImportError as e:
+        return f"no CUDA backend ({e})"
+    return mod.why_unavailable() or "no CUDA device"
 
 
 def get(name: str) -> ModuleType:
@@ -76,5 +85,6 @@ def get(name: str) -> ModuleType:
         raise ValueError(f"backend {concrete!r}: not installed here ({e}); install the extra or use backend='cpu'") from None
     probe = getattr(mod, "is_available", None)
     if probe is not None and not probe():
-        raise ValueError(f"backend {concrete!r}: no device available here; use backend='cpu' or 'auto'")
+        why = getattr(mod, "why_unavailable", lambda: None)() or "no device available here"
+        raise ValueError(f"backend {concrete!r}: {why}; use backend='cpu' or 'auto'")
     return mod

@@ -38,15 +38,46 @@ from .cost import SIM  # noqa: E402
 from .device import DeviceStack, hard_device, search_device, upload  # noqa: E402
 
 __all__ = ["SIM", "DeviceStack", "FrameStager", "Staging", "decode_whole", "hard", "is_available", "search",
-           "staging_for", "upload"]
+           "staging_for", "upload", "why_unavailable"]
 
 
 def is_available() -> bool:
-    """True when kernels can run: a CUDA device is present, or the simulator is enabled."""
+    """True when kernels can run: a CUDA device is present and numba-cuda can compile for it,
+    or the simulator is enabled (`why_unavailable`)."""
+    return why_unavailable() is None
+
+
+def why_unavailable() -> str | None:
+    """None where kernels can run, else why not, in one line: no device, a broken driver, or a
+    numba-cuda that cannot compile in this environment (`_compiler_problem`)."""
     try:
-        return bool(cuda.is_available())
-    except Exception:  # a broken driver install reads as "no device"
-        return False
+        if not cuda.is_available():
+            return "no CUDA device available here"
+    except Exception as e:  # noqa: BLE001 - a broken driver install reads as "no device"
+        return f"no CUDA device available here (the driver failed: {type(e).__name__}: {e})"
+    return None if SIM else _compiler_problem()
+
+
+_COMPILER: list[str | None] = []
+
+
+def _compiler_problem() -> str | None:
+    """Why numba-cuda cannot compile kernels in this environment, or None where it can.
+
+    Probes once per process by importing ``numba.cuda.cudaimpl`` (numba-cuda's lowering, which
+    the first kernel compile imports): numba-cuda 0.30.4 under numpy 2.5, for one, fails there
+    (``numpy`` has no ``row_stack``), and then every kernel fails on a machine whose device is
+    fine."""
+    if not _COMPILER:
+        try:
+            importlib.import_module("numba.cuda.cudaimpl")
+            _COMPILER.append(None)
+        except Exception as e:  # noqa: BLE001 - any failure there fails every kernel compile
+            import numba_cuda
+
+            _COMPILER.append(f"numba-cuda {getattr(numba_cuda, '__version__', '?')} cannot compile kernels with "
+                             f"numpy {np.__version__} ({type(e).__name__}: {e}); the gpu extra pins numpy < 2.5")
+    return _COMPILER[0]
 
 
 def _host(cand, dist, conf, st, t0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
