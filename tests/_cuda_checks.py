@@ -142,6 +142,9 @@ def check_confidence_fit(name, code_name, *, h, w, **opts):
 #: negative log-likelihoods, error a probability); exact under the simulator (same float64 ops,
 #: the CPU's log / exp), last-bit differences of the device's log / exp on a GPU.
 ERR_RTOL, ERR_ATOL = 1e-6, 1e-7
+#: the error rule's stages timed on a GPU (`pipeline.StageClock`, `finish`), in order
+STAGES = ("levels", "search", "fit_stats", "noise_fit", "posterior", "not_lit_lookup", "tail", "download",
+          "publish_host")
 
 
 def error_agrees(ref, got) -> bool:
@@ -179,12 +182,15 @@ def check_error_rule(name, code_name, *, h, w, inverse=False, band=True, dtype=n
     on_device = got.stats.get("rule") == "error" and "error" in dl.names and "gain_counts" in dl.names
     ok = not bad and all(noise) and 0 < nv < ref.valid.size and on_device
     ok &= got.stats.get("level_source") == ref.stats.get("level_source") is not None  # the same levels stage
+    ms = got.stats.get("stage_ms")  # the StageClock: no times under the simulator, every stage on a GPU
+    ok &= ms is None if gpu.SIM else (isinstance(ms, dict) and list(ms) == list(STAGES)
+                                      and all(v >= 0 for v in ms.values()))
     # fitted: >= MIN_FIT_PIXELS decoded (the binned fit ran); unless stated, the --full sizes (at
     # least 19,200 pixels) always get there and the simulator's tiny images never do
     ok &= bool(got.stats.get("noise_fitted")) == (FULL if fitted is None else fitted)
     derr = float(np.nanmax(np.abs(ref.error - got.error)))
     emit(name, ok, f"differs in {bad}, noise same {noise}, valid {nv}/{ref.valid.size}, max |d error| {derr:.2e}, "
-                   f"path {got.stats.get('path')}, downloaded {dl.names}")
+                   f"path {got.stats.get('path')}, downloaded {dl.names}, stage ms {ms}")
 
 
 def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):

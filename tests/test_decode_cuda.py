@@ -231,6 +231,44 @@ else:
     assert "OK backend 'cuda': numba-cuda" in proc.stdout
 
 
+def test_stage_clock_reports_the_stages_in_stream_order():
+    """`pipeline.StageClock` with stand-in CUDA events (no GPU here): each stage's milliseconds
+    are the time between its boundary and the previous one, in the order marked; it reads the
+    times only after the last event completed; under the simulator there are none."""
+    if not HAVE_NUMBA_CUDA:
+        pytest.skip("numba-cuda is not installed (pip install 'edge[gpu]')")
+    script = r"""
+from edge.decode.backends.cuda import pipeline
+clock_ms = iter([0.0, 1.5, 4.0, 4.25])
+synced = []
+class Event:
+    def record(self, stream=0):
+        self.t, self.stream = next(clock_ms), stream
+    def synchronize(self):
+        synced.append(self.t)
+    def elapsed_time(self, other):
+        assert synced == [4.25], "read before the last event completed"
+        return other.t - self.t
+pipeline.SIM = False
+pipeline.cuda.event = Event
+c = pipeline.StageClock("s")
+for name in ("levels", "search", "tail"):
+    c.mark(name)
+assert all(ev.stream == "s" for _, ev in c.marks)
+assert c.stage_ms() == {"levels": 1.5, "search": 2.5, "tail": 0.25}, c.stage_ms()
+pipeline.SIM = True
+s = pipeline.StageClock("s")
+s.mark("levels")
+assert s.stage_ms() is None and s.marks == []
+print("OK")
+"""
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    env.pop("NUMBA_ENABLE_CUDASIM", None)
+    proc = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "OK" in proc.stdout
+
+
 def test_profile_backend_reaches_the_decoder():
     """A profile's ``[decoder] backend`` is the settings' backend (what the runtime decodes with)."""
     from edge.decode.settings import DEFAULT_SETTINGS

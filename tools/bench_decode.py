@@ -246,6 +246,7 @@ def bench_cuda(args) -> int:
         same = all(np.array_equal(getattr(d, f), getattr(ref, f)) for f in ("column", "confidence", "valid"))
         ok &= same
         row(name, med, bmed, same)
+        stage_times(d)
         runs = [staged(**opts) for _ in range(args.repeats + 1)]
         same = all(np.array_equal(getattr(runs[-1][0], f), getattr(ref, f)) for f in ("column", "confidence", "valid"))
         ok &= same and stager.counters["stacks_not_staged"] == 0
@@ -255,6 +256,15 @@ def bench_cuda(args) -> int:
     print(f"all CUDA rows identical to the CPU backend: {ok}", flush=True)
     return 0 if ok else 1
 
+
+def stage_times(d) -> None:
+    """The last call's error-rule stages on the device (`pipeline.StageClock`, ms), one line."""
+    ms = d.stats.get("stage_ms")
+    if ms:
+        print("    stages ms: " + ", ".join(f"{k} {v:.2f}" for k, v in ms.items()), flush=True)
+
+
+def cuda_hard_regime(args, gpu_timed, row, bmed) -> bool:
 
 def cuda_hard_regime(args, gpu_timed, row, bmed) -> bool:
     """--backend cuda, the hard regime (`make_hard_input`: fixed total exposure, ambient =
@@ -296,6 +306,7 @@ def cuda_hard_regime(args, gpu_timed, row, bmed) -> bool:
                                                                  equal_nan=True))
             ok &= same
             row(name, med, cpu_med, same)
+            stage_times(d)
     print("  (hard-regime ratios are against the CPU decode() above, not the GPU baseline)", flush=True)
     return ok
 

@@ -31,6 +31,7 @@ from ...settings import DecodeSettings
 from . import posterior as post_k
 from . import refit as refit_k
 from . import validity as valid_k
+from .cost import SIM
 from .device import DeviceStack, _blocks, _dummy, buffer, device_tables, hard_device, search_device, upload
 
 
@@ -133,6 +134,38 @@ def posterior_tables(code: Code, inverse: bool) -> dict:
     return t
 
 
+class StageClock:
+    """Where the error rule's time goes on the device: a CUDA event recorded on the decode's
+    stream at each stage boundary (`mark`), read after the results are on the host (`stage_ms`).
+
+    An event completes when the stream reaches it, so a stage's milliseconds are the device
+    time between two boundaries, including the host steps in between (the noise fit, the
+    not-lit lookup: the stream idles while the host works, then the next launch follows) and
+    the downloads they wait for.  Invariant: the marks are in stream order and `stage_ms` is read
+    only after the stream finished (`finish` synchronises first).  Under the simulator events
+    carry no time: `stage_ms` is None."""
+
+    def __init__(self, stream: Any) -> None:
+        self.stream = stream
+        self.marks: list[tuple[str, Any]] = []
+        self.mark("start")
+
+    def mark(self, name: str) -> None:
+        """Record the boundary after stage `name` on the stream (asynchronous)."""
+        if not SIM:
+            ev = cuda.event()
+            ev.record(self.stream)
+            self.marks.append((name, ev))
+
+    def stage_ms(self) -> dict[str, float] | None:
+        """{stage: milliseconds} in stream order; None under the simulator."""
+        if SIM or len(self.marks) < 2:
+            return None
+        self.marks[-1][1].synchronize()
+        return {name: round(float(prev.elapsed_time(ev)), 4)
+                for (_, prev), (name, ev) in zip(self.marks, self.marks[1:])}
+
+
 def _fetch(name: str, array: Any, stream: Any, log: list) -> np.ndarray:
     """A download the host stages of the error rule need now (`to_host`, then the stream)."""
     out = to_host(name, array, stream)
@@ -161,7 +194,9 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     goodness-of-fit statistic of the best candidates, `posterior.Posterior.misfit`), column /
     valid (methods "soft" / "hard"; the others get them on the host in `finish`), ``rule``
     "error", stats (the search's + noise_a, noise_beta, noise_fitted, rule, levels, level_source,
-    and ``side_downloads``: (name, bytes) of the intermediate downloads)."""
+    and ``side_downloads``: (name, bytes) of the intermediate downloads), and ``clock``, the
+    stages' `StageClock` (`finish` puts its ``stage_ms`` in the stats: levels, search, fit_stats,
+    noise_fit, posterior, not_lit_lookup, tail, download, and the host's publish_host)."""
     from ...decoder import band_choices
     from ...level_prior import kernel_args, level_prior
     from ...posterior import (FIT_PIXELS, GAIN_BIN, SKIP_MARGIN, SPLIT_ITERATIONS, TAIL_FLOOR, _noise_from, _steps,
@@ -175,6 +210,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     scale = np.float64(scale32)  # the CPU's error rule works with float(float32(scale))
     like = np.empty((ns, 1, 1), ds.dtype)  # `_noise_from` reads the samples' dtype and count only
     side: list = []
+    clock = StageClock(stream)
     s_in = s
     source = s.level_source("error", code.q)
     if source == "refit":
@@ -203,7 +239,9 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
         s = s.with_noise(first.a, first.beta)
     else:
         searched = ds
+    clock.mark("levels")
     cand, dist, _, st = _search(searched, code, s.method, s, metric, columns, band, stripe, stream, buffers)
+    clock.mark("search")
     tb = posterior_tables(code, ds.has_inv)
     sy, sx = _steps(h, w)
     rows, cols = -(-h // sy), -(-w // sx)
@@ -213,10 +251,12 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     fc = buffer(buffers, "fit_c", (rows, cols), np.float64, stream)
     post_k.fit_stats[_blocks(rows * cols, post_k.TPB), post_k.TPB, stream](
         ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], cand, sy, sx, fs2, fmu, fb, fc)
+    clock.mark("fit_stats")
     host_b, host_c = _fetch("fit_b", fb, stream, side), _fetch("fit_c", fc, stream, side)
     noise = lit_noise(_fetch("fit_s2", fs2, stream, side), _fetch("fit_mu", fmu, stream, side), host_b, host_c, like,
                       float(scale), (s.sigma_r, s.sigma_s), code, ds.has_inv)
     noise = noise._replace(levels=level_prior(host_b, host_c))
+    clock.mark("noise_fit")  # downloads and host fits: the stream idles until the host gets here
     ptab, pu0, pdu, pw0, pdw, pout, use_prior, pmin = kernel_args(noise.levels)
     choices = band_choices(columns, band, stripe)
     pc = buffer(buffers, "post_candidates", (h, w, 3), np.int32, stream)
@@ -235,6 +275,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
         ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], cand, dist,
         float(SKIP_MARGIN), float(noise.a), float(noise.beta), nflips, tb["weight"], float(TAIL_FLOOR),
         d_ptab, pu0, pdu, pw0, pdw, pout, use_prior, pc, pd, comp, gain, pconf, far, every, lbest, due, misfit)
+    clock.mark("posterior")
     median, nb = gain_bins(code, choices, ds.has_inv)
     counts = cuda.to_device(np.zeros(nb + 2, np.int64), stream=stream)
     post_k.gain_histogram[grid, post_k.TPB, stream](gain, float(GAIN_BIN), nb, float(median), counts)
@@ -243,6 +284,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     lookup = (np.zeros(nb + 1) if total == 0
               else fdr_lookup(c[:nb], total, int(c[nb + 1]), code, choices, ds.has_inv))
     d_lookup = cuda.to_device(lookup, stream=stream)
+    clock.mark("not_lit_lookup")
     if nflips:
         post_k.tail_kernel[grid, post_k.TPB, stream](
             ds.frames, ds.inverse, ds.has_inv, ds.white, ds.black, scale, tb["xtab"], int(code.n), pc, due, far,
@@ -257,10 +299,11 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     post_k.error_valid[grid, post_k.TPB, stream](gain, comp, pc, d_lookup,
                                                  float(GAIN_BIN), nb, np.float32(s.max_error), err, col0, column,
                                                  valid)
+    clock.mark("tail")  # the tail mass (none where the code has no tail table) and error / valid
     st = dict(st, noise_a=noise.a, noise_beta=noise.beta, noise_fitted=noise.fitted, rule="error",
               levels=s_in.levels, level_source=source, side_downloads=side)
     out = {"rule": "error", "candidates": pc, "distances": pd, "confidence": pconf, "error": err, "column0": col0,
-           "misfit": misfit, "stats": st, "choices": choices, "rows": columns, "noise": noise}
+           "misfit": misfit, "stats": st, "choices": choices, "rows": columns, "noise": noise, "clock": clock}
     if s.method in ("soft", "hard"):
         out["column"], out["valid"] = column, valid
     return out
@@ -336,9 +379,14 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
     if fit and "refit_white" in out:  # the refitted on / off levels (float32) the search read
         names += ["refit_white", "refit_black"]
     host = {k: to_host(k, out[k], stream) for k in names}
+    clock = out.get("clock")
+    if clock is not None:
+        clock.mark("download")
     if stream != 0:
         stream.synchronize()
     st = out["stats"]
+    if clock is not None:
+        st["stage_ms"] = clock.stage_ms()
     if t0 is not None:
         st["seconds"] = time.perf_counter() - t0
     side = st.pop("side_downloads", [])
@@ -356,9 +404,12 @@ def finish(out: dict[str, Any], s: DecodeSettings, stream: Any = 0, t0: float | 
             cand[..., 0] = np.where(host["valid"], host["column"], -1)
         else:
             cand = host["candidates"]
+        t_pub = time.perf_counter()
         column, valid, cand, dist, err = publish_error_rule(
             stack, code, s, out["noise"], cand, host.get("distances"), host["error"], rows=out["rows"],
             choices=out["choices"], stripe=stripe, misfit=host.pop("misfit"))
+        if st.get("stage_ms") is not None:  # host only: the goodness-of-fit test and the method
+            st["stage_ms"]["publish_host"] = round(1e3 * (time.perf_counter() - t_pub), 4)
         if s.method not in ("soft", "hard"):
             host.update(candidates=cand, distances=dist)
         host["error"] = err
