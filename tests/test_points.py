@@ -5,19 +5,13 @@ from the CLI (`edge subscribe --ply`, `edge replay --ply`)."""
 from __future__ import annotations
 
 import json
-import socket
 import threading
 
 import numpy as np
 import pytest
 
 from _service_helpers import NumpyPipeline, load_test_profile
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+from _ports import free_port
 
 
 def test_depth_to_points_back_projects_a_plane_and_skips_invalid():

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import socket
 import threading
 import time
 
@@ -11,12 +10,7 @@ import pytest
 from edge.runtime.room import Member, RoomFull, RoomNameTaken, parse_token, resolve, token_key
 
 import zenoh  # a hard dependency: a broken install fails here, it is not skipped
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+from _ports import free_port
 
 
 def test_rules_tie_break_capacity_and_names():

@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -21,16 +20,11 @@ import pytest
 
 import zenoh  # a hard dependency: a broken install fails here, it is not skipped
 from _service_helpers import interactive_signals
+from _ports import free_port
 
 ROOT = Path(__file__).resolve().parents[1]
 PROFILES = Path(__file__).parent / "data" / "profiles"
 CURTAIN = PROFILES / "room-curtain.toml"
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _edge(*args: str, **kw) -> subprocess.Popen:

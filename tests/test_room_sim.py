@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import socket
 
 import numpy as np
 import pytest
@@ -10,12 +9,7 @@ import pytest
 from edge.codes.source_room import room_family
 from edge.source.joint import design, foreign_columns, joint_despread
 from edge.source.room_slots import SlotScenario, evaluate
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+from _ports import free_port
 
 
 def test_foreign_columns_are_overlap_weighted_and_design_is_full_rank():
@@ -29,7 +23,6 @@ def test_foreign_columns_are_overlap_weighted_and_design_is_full_rank():
     fam5 = room_family(5, 8)
     with pytest.raises(ValueError, match="unknowns"):  # one symbol cannot hold four foreign devices
         joint_despread(np.zeros((8, 1, 4)), fam5[0], fam5[1:], offsets=[0.5, 1.5, 2.5, 3.5])
-
 
 
 def test_joint_filter_refuses_offsets_that_do_not_match_the_foreign_codes():

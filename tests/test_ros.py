@@ -10,7 +10,6 @@
 
 from __future__ import annotations
 
-import socket
 import struct
 import threading
 import time
@@ -22,6 +21,7 @@ from _service_helpers import NumpyPipeline, load_test_profile
 
 import rosbags.typesys as rosbags_typesys  # noqa: E402  (test extra)
 import zenoh  # noqa: E402
+from _ports import free_port
 
 IMAGE_HASH = "RIHS01_d31d41a9a4c4bc8eae9be757b0beed306564f7526c88ea6a4588fb9582527d47"
 TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg/PointCloud2", "tf2_msgs/msg/TFMessage")
@@ -29,12 +29,6 @@ TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg
 
 def _store():
     return rosbags_typesys.get_typestore(rosbags_typesys.Stores.ROS2_JAZZY)
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _conf(mode, listen=(), connect=()):

@@ -7,7 +7,6 @@ Run alone: ``python -m pytest -q -m routers``.
 
 from __future__ import annotations
 
-import socket
 import threading
 import time
 
@@ -16,14 +15,9 @@ import pytest
 from _service_helpers import NumpyPipeline, load_test_profile
 
 import zenoh  # a hard dependency: a broken install fails here, it is not skipped
+from _ports import free_port
 
 pytestmark = pytest.mark.routers
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _service(device: str, **zenoh_settings):

@@ -4,7 +4,6 @@ a subscriber that goes away and comes back."""
 from __future__ import annotations
 
 import os
-import socket
 import subprocess
 import sys
 import time
@@ -15,12 +14,7 @@ import pytest
 from _service_helpers import TEST_PROFILE, NumpyPipeline, load_test_profile
 
 import zenoh  # a hard dependency: a broken install must fail, not skip
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+from _ports import free_port
 
 
 def test_edge_run_subprocess_publishes_to_subscriber():

@@ -265,8 +265,6 @@ def stage_times(d) -> None:
 
 
 def cuda_hard_regime(args, gpu_timed, row, bmed) -> bool:
-
-def cuda_hard_regime(args, gpu_timed, row, bmed) -> bool:
     """--backend cuda, the hard regime (`make_hard_input`: fixed total exposure, ambient =
     projector, 12-bit, shot-noise dominated): decode() with its defaults (self-calibration, the
     error rule and its noise fit, the goodness-of-fit test) on the device, all codewords and the

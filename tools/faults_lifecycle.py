@@ -30,15 +30,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from _service_helpers import interactive_signals  # noqa: E402
+from _ports import free_port  # noqa: E402
 TEST_PROFILE = ROOT / "tests" / "data" / "profiles" / "test-small.toml"
 #: a stopped service must be gone within this many seconds of the (first) signal
 EXIT_BOUND_S = 20.0
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def env_for(cache_dir: str | None = None, **extra: str) -> dict[str, str]:
