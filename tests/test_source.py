@@ -334,3 +334,22 @@ def test_light_curtain_false_detections_removed_by_codes():
     fam = tuple(c.string for c in family(3, 6))
     after3 = run_curtain(cfg, fam, phase_slots=(1.5, 4.0)).rates()
     assert after3["false_detection_rate"] == 0.0 and after3["missed_detection_rate"] < 0.01
+
+
+@pytest.mark.parametrize("x, y, t, p, match", [
+    ([70000], [0], [0], [1], r"x must lie in 0\.\.65535"),
+    ([0], [-1], [0], [1], r"y must lie in 0\.\.65535"),
+    ([0.5], [0], [0], [1], "x must hold integers"),
+    ([0], [0], [np.nan], [1], "t must hold integers"),
+    ([0, 1], [0], [0, 1], [1, 1], "one length"),
+])
+def test_make_events_refuses_what_would_wrap(x, y, t, p, match):
+    """Coordinates outside uint16, fractional or NaN values and mismatched lengths are one clear
+    error instead of wrapped or truncated events."""
+    with pytest.raises(ValueError, match=match):
+        make_events(x, y, t, p)
+
+
+def test_make_events_keeps_integral_floats():
+    ev = make_events(np.array([3.0, 65535.0]), [0, 2], [10, 20], [1, 0])
+    assert ev["x"].tolist() == [3, 65535] and ev["p"].tolist() == [1, -1]

@@ -45,8 +45,20 @@ def check_events(events: np.ndarray) -> None:
 
 
 def make_events(x, y, t, p) -> np.ndarray:
-    """Structured event array from equal-length x, y, t (us), p (+-1) arrays (not sorted)."""
+    """Structured event array (`EVENT_DTYPE`) from equal-length 1-D x, y (integer pixels,
+    0..65535), t (integer us) and p (> 0: +1, else -1) arrays; not sorted.  ValueError names
+    the field that does not fit (lengths, non-integer values, coordinates outside uint16) rather
+    than wrapping it."""
     x, y, t, p = (np.asarray(v) for v in (x, y, t, p))
+    if not (x.ndim == y.ndim == t.ndim == p.ndim == 1 and x.size == y.size == t.size == p.size):
+        raise ValueError(f"events: x, y, t, p must be 1-D arrays of one length, got shapes "
+                         f"{x.shape}, {y.shape}, {t.shape}, {p.shape}")
+    for name, v, hi in (("x", x, 65535), ("y", y, 65535), ("t", t, None)):
+        if v.size and not (np.issubdtype(v.dtype, np.integer) or np.issubdtype(v.dtype, np.bool_)):
+            if not (np.issubdtype(v.dtype, np.floating) and np.isfinite(v).all() and (v == np.round(v)).all()):
+                raise ValueError(f"events: {name} must hold integers, got {v.dtype} values such as {v.ravel()[0]!r}")
+        if hi is not None and v.size and (v.min() < 0 or v.max() > hi):
+            raise ValueError(f"events: {name} must lie in 0..{hi} (uint16 pixels), got {v.min()}..{v.max()}")
     ev = np.empty(t.size, EVENT_DTYPE)
     ev["x"], ev["y"], ev["t"], ev["p"] = x, y, t, np.where(p > 0, 1, -1)
     return ev
