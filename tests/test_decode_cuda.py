@@ -208,7 +208,7 @@ import numpy as np
 from edge.decode.backends import available, get, resolve
 from edge.decode.backends import cuda as gpu
 assert gpu._compiler_problem() is None, gpu._compiler_problem()  # the real probe, here
-gpu._COMPILER.clear()
+gpu._compiler_problem.cache_clear()
 gpu.cuda.is_available = lambda: True  # the driver reports a device
 real = importlib.import_module
 def broken(name, *a):

@@ -54,10 +54,13 @@ def make_events(x, y, t, p) -> np.ndarray:
         raise ValueError(f"events: x, y, t, p must be 1-D arrays of one length, got shapes "
                          f"{x.shape}, {y.shape}, {t.shape}, {p.shape}")
     for name, v, hi in (("x", x, 65535), ("y", y, 65535), ("t", t, None)):
-        if v.size and not (np.issubdtype(v.dtype, np.integer) or np.issubdtype(v.dtype, np.bool_)):
-            if not (np.issubdtype(v.dtype, np.floating) and np.isfinite(v).all() and (v == np.round(v)).all()):
-                raise ValueError(f"events: {name} must hold integers, got {v.dtype} values such as {v.ravel()[0]!r}")
-        if hi is not None and v.size and (v.min() < 0 or v.max() > hi):
+        if not v.size:
+            continue
+        integral = (np.issubdtype(v.dtype, np.integer) or np.issubdtype(v.dtype, np.bool_)
+                    or (np.issubdtype(v.dtype, np.floating) and np.isfinite(v).all() and (v == np.round(v)).all()))
+        if not integral:
+            raise ValueError(f"events: {name} must hold integers, got {v.dtype} values such as {v.ravel()[0]!r}")
+        if hi is not None and (v.min() < 0 or v.max() > hi):
             raise ValueError(f"events: {name} must lie in 0..{hi} (uint16 pixels), got {v.min()}..{v.max()}")
     ev = np.empty(t.size, EVENT_DTYPE)
     ev["x"], ev["y"], ev["t"], ev["p"] = x, y, t, np.where(p > 0, 1, -1)

@@ -40,15 +40,26 @@ BACKEND_NAMES = (*_MODULES, "auto")
 
 
 def available(name: str) -> bool:
-    """True when backend `name` can run here (its module imports and, for "cuda", a device is present)."""
-    if name not in _MODULES:
-        return False
+    """True when backend `name` can run here (its module imports and, for "cuda", a device is
+    present that numba-cuda compiles for)."""
+    return name in _MODULES and _why_not(name) is None
+
+
+def _why_not(name: str) -> str | None:
+    """None where the registered backend `name` can run here, else why not, in one line (its
+    import error, or the module's own ``why_unavailable()``)."""
     try:
         mod = importlib.import_module(_MODULES[name])
-    except ImportError:
-        return False
-    probe = getattr(mod, "is_available", None)
-    return bool(probe()) if probe is not None else True
+    except ImportError as e:
+        return f"the {name} backend is not installed here ({e})"
+    return _module_why_not(mod)
+
+
+def _module_why_not(mod: ModuleType) -> str | None:
+    """An imported backend's ``why_unavailable()`` (None: it can run; backends without devices
+    have no such probe)."""
+    probe = getattr(mod, "why_unavailable", None)
+    return probe() if probe is not None else None
 
 
 def resolve(name: str) -> str:
@@ -57,21 +68,13 @@ def resolve(name: str) -> str:
         raise ValueError(f"backend: expected one of {', '.join(BACKEND_NAMES)}, got {name!r}")
     if name != "auto":
         return name
-    if available("cuda"):
+    why = _why_not("cuda")
+    if why is None:
         return "cuda"
     if not _FELL_BACK:  # one line per process, not one per stack
         _FELL_BACK.append(True)
-        log.info("decoder backend auto: %s, decoding on the CPU", _cuda_reason())
+        log.info("decoder backend auto: %s; decoding on the CPU", why)
     return "cpu"
-
-
-def _cuda_reason() -> str:
-    """Why "auto" did not pick CUDA: the backend's own reason where it imports, else its import error."""
-    try:
-        mod = importlib.import_module(_MODULES["cuda"])
-    except ImportError as e:
-        return f"no CUDA backend ({e})"
-    return mod.why_unavailable() or "no CUDA device"
 
 
 def get(name: str) -> ModuleType:
@@ -83,8 +86,7 @@ def get(name: str) -> ModuleType:
         mod = importlib.import_module(_MODULES[concrete])
     except ImportError as e:
         raise ValueError(f"backend {concrete!r}: not installed here ({e}); install the extra or use backend='cpu'") from None
-    probe = getattr(mod, "is_available", None)
-    if probe is not None and not probe():
-        why = getattr(mod, "why_unavailable", lambda: None)() or "no device available here"
+    why = _module_why_not(mod)
+    if why is not None:
         raise ValueError(f"backend {concrete!r}: {why}; use backend='cpu' or 'auto'")
     return mod

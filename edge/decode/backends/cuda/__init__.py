@@ -22,6 +22,7 @@ simulator (slow: tests use tiny images).
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 
 if importlib.util.find_spec("numba_cuda") is None:  # numba's own numba.cuda is deprecated
@@ -58,9 +59,7 @@ def why_unavailable() -> str | None:
     return None if SIM else _compiler_problem()
 
 
-_COMPILER: list[str | None] = []
-
-
+@functools.cache
 def _compiler_problem() -> str | None:
     """Why numba-cuda cannot compile kernels in this environment, or None where it can.
 
@@ -68,16 +67,14 @@ def _compiler_problem() -> str | None:
     the first kernel compile imports): numba-cuda 0.30.4 under numpy 2.5, for one, fails there
     (``numpy`` has no ``row_stack``), and then every kernel fails on a machine whose device is
     fine."""
-    if not _COMPILER:
-        try:
-            importlib.import_module("numba.cuda.cudaimpl")
-            _COMPILER.append(None)
-        except Exception as e:  # noqa: BLE001 - any failure there fails every kernel compile
-            import numba_cuda
+    try:
+        importlib.import_module("numba.cuda.cudaimpl")
+    except Exception as e:  # noqa: BLE001 - any failure there fails every kernel compile
+        import numba_cuda
 
-            _COMPILER.append(f"numba-cuda {getattr(numba_cuda, '__version__', '?')} cannot compile kernels with "
-                             f"numpy {np.__version__} ({type(e).__name__}: {e}); the gpu extra pins numpy < 2.5")
-    return _COMPILER[0]
+        return (f"numba-cuda {getattr(numba_cuda, '__version__', '?')} cannot compile kernels with numpy "
+                f"{np.__version__} ({type(e).__name__}: {e}); the gpu extra pins numpy < 2.5")
+    return None
 
 
 def _host(cand, dist, conf, st, t0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
