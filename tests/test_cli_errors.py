@@ -64,7 +64,7 @@ def test_recordings_are_not_replaced_without_overwrite(capsys, tmp_path):
     _fails(capsys, "replay", rec, "--recover", "--out", other, expect="--out")
     assert rec.read_bytes() == before and other.read_bytes() == before
     assert profile_copy.read_text() == Path(PROFILE).read_text()
-    _fails(capsys, "sim", "record", tmp_path, "--stacks", "1", "--profile", PROFILE, expect="is a directory")
+    _fails(capsys, "sim", "record", tmp_path, "--stacks", "1", "--profile", PROFILE, expect="is a folder; expected a file name")
     # a file where the folder should be was named a missing folder
     _fails(capsys, "sim", "record", rec / "sub" / "x.mcap", "--stacks", "1", "--profile", PROFILE,
            expect=f"{rec} is a file, not a folder")
@@ -99,9 +99,9 @@ def test_user_error_covers_the_environment():
 
 
 def test_a_directory_or_a_file_in_the_wrong_place_is_named_as_such(capsys, tmp_path):
-    _fails(capsys, "profiles", "show", tmp_path, expect="is a directory; expected a TOML file")
+    _fails(capsys, "profiles", "show", tmp_path, expect="is a folder; expected a TOML file")
     assert main(["profiles", "check", str(tmp_path)]) == 1  # the checker reports per file and goes on
-    assert "is a directory; expected a TOML file" in capsys.readouterr().out
+    assert "is a folder; expected a TOML file" in capsys.readouterr().out
     _fails(capsys, "decode-images", DATA / "sim-small.mcap", expect="is a file; expected the folder")
 
 

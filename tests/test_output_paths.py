@@ -12,7 +12,9 @@ from pathlib import Path
 import pytest
 
 from edge.cli import main
+from edge.io.mcap import RecordingReader, recover
 from edge.io.paths import check_folder, file_in_the_way
+from edge.io.recording import check_record_path
 
 DATA = Path(__file__).parent / "data"
 PROFILE = str(DATA / "profiles" / "test-small.toml")
@@ -56,11 +58,9 @@ def test_a_file_two_levels_up_reads_the_same_through_every_option(capsys, blocke
     reason = f"{blocker} is a file, not a folder"
     for command, option, path, argv in _cases(blocker):
         assert _one_error(capsys, argv) == f"edge {command}: error: {option} {path}: {reason}"
-    # decode-images words its output errors as "expected a writable PNG path" and quotes the same reason
-    picture = blocker / "a" / "b" / "v.png"
+    picture = blocker / "a" / "b" / "v.png"  # decode-images' outputs read the same
     line = _one_error(capsys, ["decode-images", DATA, "--depth-picture", picture])
-    assert line == (f"edge decode-images: error: --depth-picture: expected a writable PNG path, got {picture} "
-                    f"({reason})")
+    assert line == f"edge decode-images: error: --depth-picture {picture}: {reason}"
     assert blocker.read_text() == "x" and sorted(p.name for p in blocker.parent.iterdir()) == ["blk", "other.mcap"]
 
 
@@ -83,3 +83,45 @@ def test_check_folder_missing_and_present(tmp_path):
     assert not (tmp_path / "no").exists()  # nothing created
     rel = os.path.relpath(tmp_path)
     assert check_folder(rel, option="--x") == tmp_path  # absolute
+
+
+def test_an_output_that_is_a_folder_reads_the_same_through_every_option(capsys, tmp_path):
+    folder = tmp_path / "out"
+    folder.mkdir()
+    reason = "is a folder; expected a file name"
+    assert _one_error(capsys, ["sim", "record", folder, "--stacks", "1", "--profile", PROFILE]) == (
+        f"edge sim record: error: OUT.mcap {folder}: {reason} such as {folder / 'run.mcap'}")
+    assert _one_error(capsys, ["replay", DATA / "sim-small.mcap", "--recover", "--out", folder]) == (
+        f"edge replay: error: --out {folder}: {reason} such as {folder / 'run.mcap'}")
+    assert _one_error(capsys, ["decode-images", DATA, "--depth", folder]) == (
+        f"edge decode-images: error: --depth {folder}: {reason}")
+    assert list(folder.iterdir()) == []
+
+
+def test_a_symlinked_output_is_written_through_and_stays_a_link(tmp_path):
+    """`recover` renames its finished file onto the output: onto a link's target, not the link."""
+    real = tmp_path / "real"
+    real.mkdir()
+    link = tmp_path / "link.mcap"
+    link.symlink_to(real / "t.mcap")  # broken: the file it names does not exist yet
+    check_record_path(link)  # nothing there to overwrite
+    recover(DATA / "sim-small.mcap", link)
+    assert link.is_symlink() and os.readlink(link) == str(real / "t.mcap")
+    assert RecordingReader(real / "t.mcap").complete and sorted(p.name for p in tmp_path.iterdir()) == ["link.mcap", "real"]
+    with pytest.raises(ValueError, match=f"^--record {link} already exists; pass --overwrite"):
+        check_record_path(link)
+    check_record_path(link, overwrite=True)
+    recover(DATA / "sim-small.mcap", link)
+    assert link.is_symlink() and sorted(p.name for p in real.iterdir()) == ["t.mcap"]
+    away = tmp_path / "away.mcap"  # a link into a folder that does not exist is named by that folder
+    away.symlink_to(tmp_path / "nope" / "t.mcap")
+    with pytest.raises(ValueError, match=f"^--record {away}: folder {tmp_path / 'nope'} does not exist$"):
+        check_record_path(away)
+
+
+def test_a_broken_link_where_a_folder_should_be_is_named_as_one(tmp_path):
+    gone = tmp_path / "gone"
+    gone.symlink_to(tmp_path / "missing")
+    with pytest.raises(ValueError, match=f"^--x out.png: {gone} is a broken symbolic link \\(to {tmp_path / 'missing'}\\), "
+                                         "not a folder$"):
+        check_folder(gone / "sub", option="--x", path="out.png")

@@ -142,13 +142,11 @@ def test_depth_needs_calibration_and_both_axes(rig, tmp_path, capsys):
 def test_bad_output_paths_are_one_line_errors(rig, tmp_path, capsys):
     base = ["decode-images", str(rig["cap"]), "--projector", "128x96", "--calibration", str(rig["xml"])]
     assert main(base + ["--depth", str(tmp_path / "depth.jpg")]) == 2
-    assert "--depth: expected a .png (or .tif) path" in capsys.readouterr().err
-    assert main(base + ["--ply", str(tmp_path / "no" / "such" / "cloud.ply")]) == 2
-    assert "--ply: expected a writable path" in capsys.readouterr().err
-    assert main(base + ["--depth", str(tmp_path / "no" / "such" / "d.png")]) == 2
-    assert "--depth: expected a writable PNG path" in capsys.readouterr().err
-    assert main(base + ["--depth-picture", str(tmp_path / "no" / "such" / "v.png")]) == 2
-    assert "--depth-picture: expected a writable PNG path" in capsys.readouterr().err
+    assert f"--depth {tmp_path / 'depth.jpg'}: expected a .png (or .tif) path" in capsys.readouterr().err
+    for option, name in (("--ply", "cloud.ply"), ("--depth", "d.png"), ("--depth-picture", "v.png")):
+        path = tmp_path / "no" / "such" / name  # the wording of every command's outputs
+        assert main(base + [option, str(path)]) == 2
+        assert f"{option} {path}: folder {path.parent} does not exist" in capsys.readouterr().err
     for bad in ("-1", "0", "nan"):  # refused before decoding, by name
         assert main(base + ["--max-error", bad, "--depth", str(tmp_path / "d.png")]) == 2
         assert f"--max-error: expected a reprojection error > 0 px, got {float(bad)}" in capsys.readouterr().err

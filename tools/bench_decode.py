@@ -172,6 +172,9 @@ def bench_cuda(args) -> int:
     from edge.decode.settings import DEFAULT_SETTINGS
     from tools.bench_cuda_baseline import Baseline
 
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from _cuda_checks import error_agrees  # the CUDA checks' P(wrong) tolerance, device vs CPU
+
     if not gpu.is_available():
         print("backend cuda: no CUDA device here (and NUMBA_ENABLE_CUDASIM is not set)", file=sys.stderr)
         return 2
@@ -300,8 +303,7 @@ def cuda_hard_regime(args, gpu_timed, row, bmed) -> bool:
             d, med = gpu_timed(fn)
             same = np.array_equal(d.column, ref.column) and np.array_equal(d.valid, ref.valid)
             if whole:
-                same &= d.error is not None and bool(np.allclose(d.error, ref.error, rtol=1e-6, atol=1e-7,
-                                                                 equal_nan=True))
+                same &= error_agrees(ref.error, d.error)
             ok &= same
             row(name, med, cpu_med, same)
             stage_times(d)

@@ -50,9 +50,9 @@ from typing import Any, Callable, Iterable
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(ROOT / "tests"))
 
-from soak_service import free_port  # noqa: E402
+from _ports import free_port  # noqa: E402
 MB = float(1 << 20)
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from edge.io.paths import check_folder
+from edge.io.paths import check_folder, check_not_folder, write_target
 
 
 #: Largest width or height a size option takes (pixels): beyond any camera or projector.
@@ -46,9 +46,8 @@ def check_output_file(path: str | os.PathLike[str], *, option: str) -> None:
     """ValueError naming the option unless ``path`` can be written as a file: not a folder, its
     folder exists and is writable (`edge.io.paths.check_folder`: a file where a folder should be is
     named at any depth).  Nothing is created (checked before a long run)."""
+    check_not_folder(path, option=option)
     path = Path(path)
-    if path.is_dir():
-        raise ValueError(f"{option} {path}: is a folder; expected a file name")
-    folder = check_folder(path.absolute().parent, option=option, path=path)
+    folder = check_folder(Path(write_target(path)).absolute().parent, option=option, path=path)
     if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise ValueError(f"{option} {path}: not writable")

@@ -85,14 +85,14 @@ _SIXTEEN_BIT = (".png", ".tif", ".tiff")
 
 def _imwrite(path: str, image: np.ndarray, option: str) -> None:
     if image.dtype == np.uint16 and Path(path).suffix.lower() not in _SIXTEEN_BIT:
-        raise ValueError(f"{option}: expected a .png (or .tif) path for a 16-bit image, got {path}")
+        raise ValueError(f"{option} {path}: expected a .png (or .tif) path for a 16-bit image")
     ok = False
     try:
         ok = cv2.imwrite(path, image)
     except cv2.error:
         ok = False
     if not ok:
-        raise ValueError(f"{option}: expected a writable PNG path, got {path}")
+        raise ValueError(f"{option} {path}: OpenCV could not write the image (expected a writable .png path)")
 
 
 def _warn(text: str) -> None:
@@ -115,11 +115,7 @@ def _check_outputs(args: argparse.Namespace) -> None:
     for option, path in outputs:
         if path is None:
             continue
-        try:
-            check_output_file(path, option=option)
-        except ValueError as exc:  # the wording of the write errors below, with the reason
-            kind = "path" if option == "--ply" else "PNG path"
-            raise ValueError(f"{option}: expected a writable {kind}, got {path} ({str(exc).split(': ', 1)[-1]})") from None
+        check_output_file(path, option=option)
         if os.path.exists(path) and any(os.path.samefile(path, p) for p in inputs):
             raise ValueError(f"{option} {path} is an input of this command (the capture in {args.directory}, "
                              f"--manifest or --calibration); write to another file")
@@ -139,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
     for option in ("--depth", "--column-map", "--row-map"):
         path = getattr(args, option[2:].replace("-", "_"))
         if path is not None and Path(path).suffix.lower() not in _SIXTEEN_BIT:
-            raise ValueError(f"{option}: expected a .png (or .tif) path for a 16-bit image, got {path}")
+            raise ValueError(f"{option} {path}: expected a .png (or .tif) path for a 16-bit image")
     geometric = args.depth is not None or args.depth_picture is not None or args.ply is not None
     if geometric and args.calibration is None:
         raise ValueError("--depth / --depth-picture / --ply: expected --calibration FILE (a procam calibration_result.xml)")
@@ -217,7 +213,7 @@ def run(args: argparse.Namespace) -> int:
             try:
                 write_ply(args.ply, rec.points / 1000.0, colors=grey)
             except OSError as exc:
-                raise ValueError(f"--ply: expected a writable path, got {args.ply} ({exc.strerror})") from None
+                raise ValueError(f"--ply {args.ply}: {exc.strerror}") from None
             written.append(args.ply)
     print(f"wrote {', '.join(written)}" if written else
           "wrote nothing (give --out, --column-map, --row-map, --depth, --depth-picture or --ply)")

@@ -203,6 +203,13 @@ class OutputPairs:
         return None
 
 
+def refuse_folder(path: str) -> None:
+    """RecordingError ``"PATH: is a folder, expected an MCAP recording file"`` where the recording
+    to read, ``path``, is a folder (the readers' and `recover`'s one wording)."""
+    if os.path.isdir(path):
+        raise RecordingError(f"{path}: is a folder, expected an MCAP recording file")
+
+
 class RecordingReader:
     """Reader for one recording (see the module docstring).
 
@@ -220,8 +227,7 @@ class RecordingReader:
         self.chunks_skipped = 0             # corrupt chunks skipped in the last pass
         self.leaves_seen: set[str] = set()  # topics' last parts seen by the last frames / outputs / stacks pass
         self.head_problem: str | None = None  # the first problem before the first message, if any
-        if os.path.isdir(self.path):
-            raise RecordingError(f"{self.path}: is a directory, expected an MCAP recording file")
+        refuse_folder(self.path)
         try:
             self.total_bytes = os.path.getsize(self.path)
             with open(self.path, "rb") as f:

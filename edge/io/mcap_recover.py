@@ -25,7 +25,8 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from .mcap_format import MCAP_PROFILE
-from .mcap_reader import NotMcapError, RecordingError
+from .mcap_reader import NotMcapError, RecordingError, refuse_folder
+from .paths import check_not_folder, write_target
 from .mcap_scan import CORRUPT_ERRORS, MCAP_MAGIC, RecordScanner, summary_definitions
 
 __all__ = ["RecoveryReport", "recover"]
@@ -69,7 +70,8 @@ def recover(path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
     """Copy the readable part of ``path`` into a finalised MCAP at ``out_path``; see the module doc.
 
     The output is written to a temporary file next to ``out_path`` and renamed onto it at the end,
-    so ``out_path`` is never left half-written.  An incomplete input from which no message could be
+    so ``out_path`` is never left half-written (where ``out_path`` is a symbolic link, next to and
+    onto the file it leads to: the link stays).  An incomplete input from which no message could be
     read (cut inside its first chunk, only a header) raises `RecordingError` and writes nothing:
     an empty "recovered" file would pass for a salvage of the recording.
     """
@@ -79,10 +81,11 @@ def recover(path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
         # also a symlink or hard link to the input: writing it would truncate the input
         raise ValueError(f"expected an output path different from the input, got {out_path!r}, "
                          f"which is {path!r} itself (same file); nothing was written")
-    if os.path.isdir(path):
-        raise RecordingError(f"{path}: is a directory, expected an MCAP recording file")
-    if os.path.isdir(out_path):
-        raise RecordingError(f"{out_path}: is a directory, expected the path of the recovered file")
+    refuse_folder(path)
+    try:
+        check_not_folder(out_path, option="output")
+    except ValueError as exc:
+        raise RecordingError(str(exc)) from None
     total = os.path.getsize(path)
     with open(path, "rb") as f:
         head = f.read(len(MCAP_MAGIC))
@@ -91,7 +94,8 @@ def recover(path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
 
     report = RecoveryReport(path=path, out_path=out_path, total_bytes=total,
                             recovered_bytes=len(MCAP_MAGIC), chunks=0, messages=0)
-    partial = os.path.join(os.path.dirname(os.path.abspath(out_path)),
+    target = write_target(out_path)  # a symbolic link stays one: the file it leads to is replaced
+    partial = os.path.join(os.path.dirname(os.path.abspath(target)),
                            f".edge-recover-{os.getpid()}-{uuid.uuid4().hex[:8]}.part")
     try:
         with open(partial, "xb") as out:
@@ -99,7 +103,7 @@ def recover(path: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
         if report.messages == 0 and not report.complete_input:
             raise RecordingError(f"{path}: nothing could be recovered: no complete chunk holds a message "
                                  f"({report.reason or 'no chunk at all'}); nothing was written")
-        os.replace(partial, out_path)
+        os.replace(partial, target)
     finally:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(partial)

@@ -18,7 +18,7 @@ from typing import Any
 
 from edge.io.mcap_reader import MAX_PENDING
 from edge.io.mcap_writer import Recorder
-from edge.io.paths import check_folder
+from edge.io.paths import check_folder, check_not_folder, write_target
 
 from ..sensors.base import EventSlice, Frame, parse_projector_frame
 from edge.runtime.result import DepthResult
@@ -453,9 +453,9 @@ def check_record_path(path: str | os.PathLike[str], *, overwrite: bool = False, 
     path = os.fspath(path)
     if not path:
         raise ValueError(f"{option}: expected a file name, got ''")
-    if os.path.isdir(path):
-        raise ValueError(f"{option} {path}: is a directory; expected a file name such as {os.path.join(path, 'run.mcap')}")
-    folder = os.fspath(check_folder(os.path.dirname(os.path.abspath(path)), option=option, path=path))
+    check_not_folder(path, option=option, example=os.path.join(path, "run.mcap"))
+    target = write_target(path)  # a symbolic link: the file it leads to is the one written
+    folder = os.fspath(check_folder(os.path.dirname(os.path.abspath(target)), option=option, path=path))
     try:
         name_max = os.pathconf(folder, "PC_NAME_MAX")
     except (OSError, ValueError):
@@ -466,7 +466,7 @@ def check_record_path(path: str | os.PathLike[str], *, overwrite: bool = False, 
     for other in inputs:
         if other and os.path.exists(other) and os.path.exists(path) and os.path.samefile(other, path):
             raise ValueError(f"{option} {path} is an input of this command ({other}); write to another file")
-    existing = [] if rotate else ([path] if os.path.lexists(path) else [])
+    existing = [] if rotate else ([path] if os.path.lexists(target) else [])
     for p in existing:
         if os.path.exists(p) and not os.path.isfile(p):
             raise ValueError(f"{option} {p}: exists and is not a regular file; expected a file name")

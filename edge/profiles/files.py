@@ -67,7 +67,7 @@ def find_profile(name_or_path: str | os.PathLike[str]) -> Path:
         return path
     text = str(name_or_path)
     if path.is_dir():
-        raise ValueError(f"profile {text!r} is a directory; expected a TOML file or a profile name")
+        raise ValueError(f"profile {text!r} is a folder; expected a TOML file or a profile name")
     if text.endswith(".toml") or os.sep in text or "/" in text:
         raise FileNotFoundError(f"profile file {text!r} does not exist")
     for d in profile_dirs():
