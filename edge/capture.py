@@ -96,6 +96,14 @@ def dtype_for_bits(bits: int) -> type:
     return np.uint8 if int(bits) <= 8 else np.uint16
 
 
+#: Largest sigma_r / sigma_s (normalised units, 1 = full scale): the one bound of the noise
+#: sigmas, which the decoder's settings (`edge.decode.settings`), the profiles' ``[camera] sigma_r
+#: / sigma_s`` (`edge.profiles.settings`) and the simulator's camera (`edge.sim.CameraModel`) take.
+#: A read-noise or shot-noise sigma of more than the full scale means no signal; the bound also
+#: keeps the variance's square finite in float64 (a sigma of 4e250 overflowed inside decode).
+MAX_SIGMA = 1.0
+
+
 @dataclass(frozen=True)
 class NoiseModel:
     """Per-sample noise in normalised units: variance ``sigma_r**2 + sigma_s**2 * I``."""

@@ -1,4 +1,5 @@
-"""One bound of the noise sigmas: `edge.decode.settings.MAX_SIGMA` (normalised units, 1 = full scale).
+"""One bound of the noise sigmas: `edge.capture.MAX_SIGMA` (normalised units, 1 = full scale), which the
+decoder's settings, the profiles and the simulator's camera read.
 
 The profiles held ``[camera] sigma_r / sigma_s`` to [0, 1] while `DecodeSettings` took them up to
 10; now both read `MAX_SIGMA` = 1, and each refusal names the field and the allowed range.
@@ -11,19 +12,21 @@ import dataclasses
 import numpy as np
 import pytest
 
+import edge.capture
 from edge.codes import get_code
 from edge.decode import DecodeSettings, decode
 from edge.decode.settings import DEFAULT_SETTINGS, MAX_SIGMA, from_profile
 from edge.decode.synthetic import make_capture
 from edge.profiles import ProfileError, apply_update, load_profile
 from edge.profiles.settings import CameraSettings
+from edge.sim import CameraModel
 
 RANGE = {"sigma_r": "sigma_r: expected 1e-06 <= sigma_r <= 1 (normalised units, 1 = full scale)",
          "sigma_s": "sigma_s: expected 0 <= sigma_s <= 1 (normalised units, 1 = full scale)"}
 
 
 def test_the_profile_bound_is_the_decoder_bound():
-    assert MAX_SIGMA == 1.0
+    assert MAX_SIGMA == 1.0 and MAX_SIGMA is edge.capture.MAX_SIGMA
     hi = {f.name: f.metadata["hi"] for f in dataclasses.fields(CameraSettings) if f.name.startswith("sigma")}
     assert hi == {"sigma_r": MAX_SIGMA, "sigma_s": MAX_SIGMA}
 
@@ -98,3 +101,10 @@ def test_a_fitted_noise_above_the_bound_does_not_refuse_the_capture():
     assert np.sqrt(split_levels(f, wh, bl, 1.0)[2].beta) > MAX_SIGMA  # the premise
     d = decode(f, wh, bl, code)
     assert d.column.shape == wh.shape
+
+
+@pytest.mark.parametrize("name", ["sigma_r", "sigma_s"])
+def test_the_simulator_camera_takes_the_same_bound(name):
+    assert getattr(CameraModel(**{name: MAX_SIGMA}), name) == MAX_SIGMA
+    with pytest.raises(ValueError, match=rf"^camera: {name} must be <= 1 \(normalised units, 1 = full scale\), got 1.5$"):
+        CameraModel(**{name: 1.5})

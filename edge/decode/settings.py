@@ -42,6 +42,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from ..capture import MAX_SIGMA  # noqa: F401  (the settings' bound; re-exported)
 from .backends import BACKEND_NAMES
 
 #: The one list of each choice (profiles, the CLI and the service take theirs from here; the
@@ -50,11 +51,6 @@ METHODS = ("hard", "soft", "list", "median", "list+median", "sgm")
 METRIC_NAMES = ("ml", "normalized")
 LEVELS = ("auto", "calibration", "refit")
 VALIDITY = ("auto", "error", "confidence")
-#: Largest sigma_r / sigma_s (normalised units, 1 = full scale): the one bound of the noise
-#: sigmas, which the profiles' ``[camera] sigma_r / sigma_s`` take too (`edge.profiles.settings`).
-#: A read-noise or shot-noise sigma of more than the full scale means no signal; the bound also
-#: keeps the variance's square finite in float64 (a sigma of 4e250 overflowed inside decode).
-MAX_SIGMA = 1.0
 #: Smallest sigma_r (normalised units): below about 7.5e-155 the cost model's reciprocal variance
 #: ``1 / sigma_r**2`` overflows float64 and the costs become NaN; 1e-6 is far below any camera's
 #: read and quantisation noise (a 16-bit step's quantisation sigma is 4.4e-6 of full scale) and equals the

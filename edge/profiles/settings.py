@@ -33,7 +33,7 @@ TOML layout (every table and key; ``=`` gives the default, no default = required
     exposure_us = 8000.0                  # <= 1e6 / rate_hz
     sigma_r = 0.004                       # read noise, std dev on the [0, 1] intensity scale (0..1)
     sigma_s = 0.015                       # shot-noise factor: variance = sigma_r**2 + sigma_s**2 * I (0..1;
-                                          # the bound: edge.decode.settings.MAX_SIGMA)
+                                          # the bound: edge.capture.MAX_SIGMA)
 
     [code]
     name = "ecc-22-10"                    # edge.codes.get_code name; "" only for dots / line projectors
@@ -126,7 +126,8 @@ import typing
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-from edge.decode.settings import DEFAULT_SETTINGS as _LIB, MAX_SIGMA
+from edge.capture import MAX_SIGMA
+from edge.decode.settings import DEFAULT_SETTINGS as _LIB
 from edge.device import PIPELINES
 
 __all__ = [

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+from ..capture import MAX_SIGMA
+
 SUPPORTED_BITS = (8, 10, 12, 16)
 
 
@@ -57,6 +59,10 @@ class CameraModel:
             value = getattr(self, name)
             if not value >= 0:
                 raise ValueError(f"camera: {name} must be >= 0, got {value}")
+        for name in ("sigma_r", "sigma_s"):  # the decoder's and the profiles' bound too
+            if getattr(self, name) > MAX_SIGMA:
+                raise ValueError(f"camera: {name} must be <= {MAX_SIGMA:g} (normalised units, 1 = full scale), "
+                                 f"got {getattr(self, name)}")
         for name in ("exposure", "total_exposure"):
             value = getattr(self, name)
             if not value > 0:
