@@ -333,7 +333,7 @@ def startup_error_cases(tmp: Path) -> list[tuple[str, list[str], str]]:
         ("non-local listen address", base + ["--listen", "tcp/192.0.2.1:7461"], "not one of this host"),
         ("client mode, nobody to connect to", ["run", "--profile", str(client), "--stacks", "1"], "Unable to connect"),
         ("port taken", base + ["--listen", f"tcp/127.0.0.1:{HELD_PORT[0]}"], "already in use"),
-        ("--record is a directory", base + ["--no-zenoh", "--record", str(tmp)], "is a directory"),
+        ("--record is a folder", base + ["--no-zenoh", "--record", str(tmp)], "is a folder; expected a file name"),
         ("--record in a missing folder", base + ["--no-zenoh", "--record", str(tmp / "nope" / "a.mcap")], "does not exist"),
         ("--record in a read-only folder", base + ["--no-zenoh", "--record", "/proc/sys/edge-test.mcap"], "not writable"),
         ("--record /dev/full", base + ["--no-zenoh", "--record", "/dev/full", "--overwrite"], "not a regular file"),
