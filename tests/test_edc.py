@@ -560,13 +560,9 @@ def test_runtime_edc_stage_column_and_confidence_are_consistent():
 
 
 def test_bench_service_sets_edc_rounds(tmp_path):
-    import importlib.util
-    from pathlib import Path
+    from _tools import load_tool
 
-    spec = importlib.util.spec_from_file_location("bench_service",
-                                                  Path(__file__).resolve().parents[1] / "tools" / "bench_service.py")
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_tool("bench_service")
     path, profile = bench.edc_profile("sim-dlp", 3, tmp_path)
     assert path.exists() and profile.edc.rounds == 3 and profile.name == "sim-dlp"
 

@@ -4,7 +4,6 @@ renderer (true levels <= the decoder's defaults <= own levels with no prior, in 
 
 from __future__ import annotations
 
-import importlib.util
 import sys
 from pathlib import Path
 
@@ -17,13 +16,11 @@ from edge.decode import decode
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 from _plane_box_sphere import render, scene  # noqa: E402
+from _tools import load_tool  # noqa: E402
 
 
 def _tool():
-    spec = importlib.util.spec_from_file_location("eval_posterior", ROOT / "tools" / "eval_posterior.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("eval_posterior")
 
 
 def test_bound_costs_match_a_loop_over_the_codewords():

@@ -3,22 +3,17 @@ and containers followed, arrays alive before the run left out; and its option ch
 
 from __future__ import annotations
 
-import importlib.util
 from collections import deque
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[1] / "tools" / "memory_service.py"
+from _tools import load_tool
 
 
 @pytest.fixture(scope="module")
 def tool():
-    spec = importlib.util.spec_from_file_location("memory_service", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("memory_service")
 
 
 class _Holder:

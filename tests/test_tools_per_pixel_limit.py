@@ -3,7 +3,6 @@ column against `decode()`'s own candidate costs, the Bayes rule's bookkeeping, a
 
 from __future__ import annotations
 
-import importlib.util
 import sys
 from pathlib import Path
 
@@ -15,13 +14,11 @@ from edge.decode.level_prior import kernel_args
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 from _plane_box_sphere import render, scene  # noqa: E402
+from _tools import load_tool  # noqa: E402
 
 
 def _tool():
-    spec = importlib.util.spec_from_file_location("eval_per_pixel_limit", ROOT / "tools" / "eval_per_pixel_limit.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("eval_per_pixel_limit")
 
 
 def _normal_cost(x: np.ndarray, mean: np.ndarray, a: float, beta: float) -> float:
@@ -97,7 +94,7 @@ def test_a_small_run_prints_one_row_per_scene(capsys, tmp_path):
     assert len(rows) == 2
     for line in rows:
         cells = line.strip("|").split("|")[1:]
-        assert len(cells) == 4
+        assert len(cells) == 5
         for cell in cells:
             gray, ecc = (float(v.strip().split("%")[0]) for v in cell.split(" / ")[:2])
             assert 0.0 <= gray <= 100.0 and 0.0 <= ecc <= 100.0

@@ -3,20 +3,15 @@ functions are the originals again afterwards (the tool wraps them only while it 
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
 
 import edge.decode.decoder as decoder
 import edge.decode.posterior as posterior
 
-TOOL = Path(__file__).resolve().parents[1] / "tools" / "profile_decode.py"
+from _tools import load_tool
 
 
 def _tool():
-    spec = importlib.util.spec_from_file_location("profile_decode", TOOL)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("profile_decode")
 
 
 def test_profile_decode_prints_every_row_and_restores_the_stages(capsys):

@@ -8,7 +8,7 @@ Bayes rule that knows everything about the scene except each pixel's own levels.
 The captures are `tools/eval_posterior.py`'s (edge.sim's flying scene and the tests'
 plane-box-sphere renderer, 12-bit, every frame at T / n, ambient = 0.5 / 1 / 2 x projector), gray-10
 and ecc-22-10.  The error rate is the same: lit pixels whose column is wrong or that are not
-published, P(wrong) < `MAX_ERROR` publishing.  Four decoders per code:
+published, P(wrong) < `MAX_ERROR` publishing.  Five decoders per code:
 
 * **decode()**: the library's defaults (the product).
 * **its model, every codeword**: `decode()`'s own cost of each codebook row (`posterior._word_cost`:
@@ -24,7 +24,9 @@ published, P(wrong) < `MAX_ERROR` publishing.  Four decoders per code:
   the lit atoms of N(x; levels of c) and P(unlit | x) ∝ (1 - share_lit) * mean over the unlit atoms
   of N(x; flat level), exactly (rows: the `--top` best rows by `decode()`'s model, the column before;
   the rest add nothing at these margins).  The published column is the most probable row, P(wrong)
-  the mass (unlit included) more than one row from it.
+  the mass (unlit included) more than one row from it.  The column before it is the same rule
+  with the noise model `decode()` fitted to the capture instead of the camera's: what the
+  level law alone is worth.
 * **true levels, lit known**: `eval_posterior.bound_error`, which also knows each pixel's levels
   and that it is lit: no decoder has this.
 
@@ -61,7 +63,8 @@ from edge.decode.level_prior import kernel_args  # noqa: E402
 CODES = ("gray-10", "ecc-22-10")
 #: The default target of `decode()` (`DecodeSettings.max_error`).
 MAX_ERROR = 0.01
-COLUMNS = ("decode()", "its model, every codeword", "scene-law Bayes rule", "true levels, lit known")
+COLUMNS = ("decode()", "its model, every codeword", "scene-law rule, decode()'s noise fit", "scene-law Bayes rule",
+           "true levels, lit known")
 
 
 def samples_of(frames: np.ndarray, white: np.ndarray, black: np.ndarray, bits: int, where: np.ndarray) -> np.ndarray:
@@ -77,26 +80,52 @@ def symbols(code) -> np.ndarray:
                                                 np.zeros((code.size, 1))], 1))
 
 
+@njit(cache=True, inline="always")
+def _pixel_sums(S, p):
+    """(sum, sum of squares) of pixel p's samples S[p]."""
+    tot = 0.0
+    sq = 0.0
+    for i in range(S.shape[1]):
+        tot += S[p, i]
+        sq += S[p, i] * S[p, i]
+    return tot, sq
+
+
+@njit(cache=True, inline="always")
+def _row_sums(S, X, p, c):
+    """(count, sum, sum of squares) of pixel p's samples where row c's symbol X[c] is 1."""
+    n1 = 0.0
+    s1 = 0.0
+    q1 = 0.0
+    for i in range(S.shape[1]):
+        if X[c, i] != 0.0:
+            n1 += 1.0
+            s1 += S[p, i]
+            q1 += S[p, i] * S[p, i]
+    return n1, s1, q1
+
+
+@njit(cache=True, inline="always")
+def _neg2_log_mean_exp(costs, count):
+    """-2 log mean_k exp(-costs[k] / 2) over the first ``count`` costs (shifted by their least)."""
+    least = np.inf
+    for k in range(count):
+        least = min(least, costs[k])
+    acc = 0.0
+    for k in range(count):
+        acc += np.exp(-0.5 * (costs[k] - least))
+    return least - 2.0 * np.log(acc / count)
+
+
 @njit(cache=True, parallel=True)
 def model_costs(S, X, a, beta, ptab, pu0, pdu, pw0, pdw, pout, use_prior, out):
     """out (P, rows) = `posterior._word_cost` of every row for every pixel: S (P, m) samples, X
     (rows, m) symbols, (a, beta) the noise model, the rest `level_prior.kernel_args`."""
     npix, m = S.shape
     for p in prange(npix):
-        tot = 0.0
-        sq = 0.0
-        for i in range(m):
-            tot += S[p, i]
-            sq += S[p, i] * S[p, i]
+        tot, sq = _pixel_sums(S, p)
         for c in range(X.shape[0]):
-            n1 = 0.0
-            s1 = 0.0
-            q1 = 0.0
-            for i in range(m):
-                if X[c, i] != 0.0:
-                    n1 += 1.0
-                    s1 += S[p, i]
-                    q1 += S[p, i] * S[p, i]
+            n1, s1, q1 = _row_sums(S, X, p, c)
             out[p, c] = posterior._word_cost(m, n1, tot, s1, sq, q1, a, beta, ptab, pu0, pdu, pw0, pdw, pout,
                                              use_prior)
 
@@ -118,47 +147,23 @@ def marginal_costs(S, X, rows, on, off, flat, a, beta, out_lit, out_unlit):
     lvf = np.log(a + beta * flat)
     rf = 1.0 / (a + beta * flat)
     for p in prange(npix):
-        tot = 0.0
-        sq = 0.0
-        for i in range(m):
-            tot += S[p, i]
-            sq += S[p, i] * S[p, i]
+        tot, sq = _pixel_sums(S, p)
         ck = np.empty(max(K, J))
         for t in range(rows.shape[1]):
-            c = rows[p, t]
-            n1 = 0.0
-            s1 = 0.0
-            q1 = 0.0
-            for i in range(m):
-                if X[c, i] != 0.0:
-                    n1 += 1.0
-                    s1 += S[p, i]
-                    q1 += S[p, i] * S[p, i]
+            n1, s1, q1 = _row_sums(S, X, p, rows[p, t])
             n0 = m - n1
             s0 = tot - s1
             q0 = sq - q1
-            least = np.inf
             for k in range(K):
                 h = on[k]
                 o = off[k]
-                v = (q1 - 2.0 * h * s1 + n1 * h * h) * r1[k] + n1 * lv1[k] + (q0 - 2.0 * o * s0 + n0 * o * o) * r0[k] \
-                    + n0 * lv0[k]
-                ck[k] = v
-                least = min(least, v)
-            acc = 0.0
-            for k in range(K):
-                acc += np.exp(-0.5 * (ck[k] - least))
-            out_lit[p, t] = least - 2.0 * np.log(acc / K)
-        least = np.inf
+                ck[k] = ((q1 - 2.0 * h * s1 + n1 * h * h) * r1[k] + n1 * lv1[k]
+                         + (q0 - 2.0 * o * s0 + n0 * o * o) * r0[k] + n0 * lv0[k])
+            out_lit[p, t] = _neg2_log_mean_exp(ck, K)
         for j in range(J):
             f = flat[j]
-            v = (sq - 2.0 * f * tot + m * f * f) * rf[j] + m * lvf[j]
-            ck[j] = v
-            least = min(least, v)
-        acc = 0.0
-        for j in range(J):
-            acc += np.exp(-0.5 * (ck[j] - least))
-        out_unlit[p] = least - 2.0 * np.log(acc / J)
+            ck[j] = (sq - 2.0 * f * tot + m * f * f) * rf[j] + m * lvf[j]
+        out_unlit[p] = _neg2_log_mean_exp(ck, J)
 
 
 def published_errors(cost: np.ndarray, rows: np.ndarray, truth_rows: np.ndarray, p_other: np.ndarray,
@@ -206,7 +211,7 @@ def decode_with_model(f, w, b, bits, code):
 
 
 def error_counts(gen, levels_of, code, ratio: float, seed: int, size, atoms: int, top: int) -> np.ndarray:
-    """(5,) int64: lit pixels, then the errors of the four `COLUMNS` on one capture."""
+    """(6,) int64: lit pixels, then the errors of the five `COLUMNS` on one capture."""
     f, w, b, bits, col, lit = gen(code, ratio, seed, size)
     d, noise, fdr, idx = decode_with_model(f, w, b, bits, code)
     S = samples_of(f, w, b, bits, lit)
@@ -227,18 +232,21 @@ def error_counts(gen, levels_of, code, ratio: float, seed: int, size, atoms: int
     flat = (unlit_levels[rng.choice(unlit_levels.size, size=min(atoms, unlit_levels.size), replace=False)]
             if unlit_levels.size else np.zeros(1))
     rows = np.ascontiguousarray(np.argsort(own, 1, kind="stable")[:, :top])
-    lit_cost = np.empty(rows.shape)
-    unlit_cost = np.empty(S.shape[0])
-    marginal_costs(S, X, rows, np.ascontiguousarray(on[lit][lit_at]), np.ascontiguousarray(off[lit][lit_at]),
-                   np.ascontiguousarray(flat, np.float64), a, beta, lit_cost, unlit_cost)
     share = lit.mean()
-    lit_cost += 2.0 * np.log(code.size / share)
-    unlit_cost = (unlit_cost - 2.0 * np.log(1.0 - share)) if share < 1.0 else np.full(S.shape[0], np.inf)
+    scene_law = []
+    for noise_model in ((float(noise.a), float(noise.beta)), (a, beta)):  # the decode's fit, the camera's
+        lit_cost = np.empty(rows.shape)
+        unlit_cost = np.empty(S.shape[0])
+        marginal_costs(S, X, rows, np.ascontiguousarray(on[lit][lit_at]), np.ascontiguousarray(off[lit][lit_at]),
+                       np.ascontiguousarray(flat, np.float64), *noise_model, lit_cost, unlit_cost)
+        lit_cost += 2.0 * np.log(code.size / share)
+        unlit_cost = (unlit_cost - 2.0 * np.log(1.0 - share)) if share < 1.0 else np.full(S.shape[0], np.inf)
+        scene_law.append(published_errors(lit_cost, rows, truth_rows, np.zeros(S.shape[0]), unlit_cost))
     bound, _ = ev.bound_error(f, w, b, bits, on, off, code, col, lit, (a, beta), max_error=MAX_ERROR)
     return np.array([int(lit.sum()),
                      int((((d.column != col) | ~d.valid) & lit).sum()),
                      published_errors(own, every, truth_rows, p_not_lit),
-                     published_errors(lit_cost, rows, truth_rows, np.zeros(S.shape[0]), unlit_cost),
+                     *scene_law,
                      int(round(bound * lit.sum()))], np.int64)
 
 
