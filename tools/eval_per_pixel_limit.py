@@ -188,9 +188,11 @@ def published_errors(cost: np.ndarray, rows: np.ndarray, truth_rows: np.ndarray,
     return int(((p_wrong >= MAX_ERROR) | (best != truth_rows)).sum())
 
 
-def decode_with_model(f, w, b, bits, code):
-    """(Decoded, noise, fdr, idx): `decode()` with its defaults, and what its posterior used: the
-    noise model with the level prior, and its P(not lit) lookup (`posterior._not_lit_lookup`)."""
+def decode_with_model(f: np.ndarray, w: np.ndarray, b: np.ndarray, bits: int, code) -> tuple:
+    """(Decoded, noise, fdr, idx): `decode()` with its defaults on frames ``f`` (n, H, W), white
+    ``w`` and black ``b`` (H, W) at ``bits``, and what its error rule's posterior used: the noise
+    model with the level prior, and its P(not lit) lookup (`posterior._not_lit_lookup`: fdr (nb +
+    1,) float64, idx (H, W) int64)."""
     seen = {}
     original, lookup = decoder.posterior, posterior._not_lit_lookup
 
@@ -210,7 +212,8 @@ def decode_with_model(f, w, b, bits, code):
     return d, seen["noise"], *seen["not_lit"]
 
 
-def error_counts(gen, levels_of, code, ratio: float, seed: int, size, atoms: int, top: int) -> np.ndarray:
+def error_counts(gen, levels_of, code, ratio: float, seed: int, size: tuple[int, int], atoms: int,
+                 top: int) -> np.ndarray:
     """(6,) int64: lit pixels, then the errors of the five `COLUMNS` on one capture."""
     f, w, b, bits, col, lit = gen(code, ratio, seed, size)
     d, noise, fdr, idx = decode_with_model(f, w, b, bits, code)
