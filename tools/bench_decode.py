@@ -172,9 +172,6 @@ def bench_cuda(args) -> int:
     from edge.decode.settings import DEFAULT_SETTINGS
     from tools.bench_cuda_baseline import Baseline
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-    from _cuda_checks import error_agrees  # the CUDA checks' P(wrong) tolerance, device vs CPU
-
     if not gpu.is_available():
         print("backend cuda: no CUDA device here (and NUMBA_ENABLE_CUDASIM is not set)", file=sys.stderr)
         return 2
@@ -279,6 +276,9 @@ def cuda_hard_regime(args, gpu_timed, row, bmed) -> bool:
     from edge.decode.backends.cuda.pipeline import HOST_OUTPUTS
     from edge.decode.backends.cuda.staging import Staging
     from edge.decode.settings import DEFAULT_SETTINGS
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from _cuda_checks import error_agrees  # the CUDA checks' P(wrong) tolerance, device vs CPU
 
     h, w = (3, 24) if args.small else (args.height, args.width)  # the simulator: a tail pixel takes seconds
     code, truth_cols, cap, (min_d, max_d) = make_hard_input(h, w, args.seed)
