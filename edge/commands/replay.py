@@ -36,7 +36,6 @@ def register(subparsers: Any) -> None:
 def replay(args: argparse.Namespace) -> int:
     from edge.commands._replay_many import is_many, replay_many
     from edge.io.mcap import RecordingError, recover
-    from edge.io.mcap_reader import refuse_folder
     from edge.io.replay import replay_recording
 
     if is_many(args):
@@ -44,7 +43,6 @@ def replay(args: argparse.Namespace) -> int:
     path = args.file
     if not os.path.exists(path):
         raise FileNotFoundError(f"recording {path!r} does not exist")
-    refuse_folder(path)
     if args.recover:
         from edge.io.recording import check_record_path
 

@@ -42,7 +42,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from ..capture import MAX_SIGMA  # noqa: F401  (the settings' bound; re-exported)
+from ..capture import MAX_SIGMA
 from .backends import BACKEND_NAMES
 
 #: The one list of each choice (profiles, the CLI and the service take theirs from here; the

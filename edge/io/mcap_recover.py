@@ -26,8 +26,8 @@ from mcap.writer import CompressionType, Writer
 
 from .mcap_format import MCAP_PROFILE
 from .mcap_reader import NotMcapError, RecordingError, refuse_folder
-from .paths import check_not_folder, write_target
 from .mcap_scan import CORRUPT_ERRORS, MCAP_MAGIC, RecordScanner, summary_definitions
+from .paths import check_not_folder, write_target
 
 __all__ = ["RecoveryReport", "recover"]
 

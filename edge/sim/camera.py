@@ -59,10 +59,9 @@ class CameraModel:
             value = getattr(self, name)
             if not value >= 0:
                 raise ValueError(f"camera: {name} must be >= 0, got {value}")
-        for name in ("sigma_r", "sigma_s"):  # the decoder's and the profiles' bound too
-            if getattr(self, name) > MAX_SIGMA:
+            if name.startswith("sigma") and value > MAX_SIGMA:  # the decoder's and the profiles' bound too
                 raise ValueError(f"camera: {name} must be <= {MAX_SIGMA:g} (normalised units, 1 = full scale), "
-                                 f"got {getattr(self, name)}")
+                                 f"got {value}")
         for name in ("exposure", "total_exposure"):
             value = getattr(self, name)
             if not value > 0:
