@@ -67,19 +67,6 @@ COLUMNS = ("decode()", "its model, every codeword", "scene-law rule, decode()'s 
            "true levels, lit known")
 
 
-def samples_of(frames: np.ndarray, white: np.ndarray, black: np.ndarray, bits: int, where: np.ndarray) -> np.ndarray:
-    """(P, n + 2) float64 normalised samples (code frames, white, black) of the pixels ``where``
-    ((H, W) bool), in raster order."""
-    r = np.concatenate([frames, white[None], black[None]]).astype(np.float64) / float(2 ** bits - 1)
-    return np.ascontiguousarray(r.reshape(r.shape[0], -1).T[where.ravel()])
-
-
-def symbols(code) -> np.ndarray:
-    """(rows, n + 2) float64 0 / 1: every codebook row's symbols, then white (1) and black (0)."""
-    return np.ascontiguousarray(np.concatenate([code.codebook.astype(np.float64), np.ones((code.size, 1)),
-                                                np.zeros((code.size, 1))], 1))
-
-
 @njit(cache=True, inline="always")
 def _pixel_sums(S, p):
     """(sum, sum of squares) of pixel p's samples S[p]."""
@@ -217,8 +204,8 @@ def error_counts(gen, levels_of, code, ratio: float, seed: int, size: tuple[int,
     """(6,) int64: lit pixels, then the errors of the five `COLUMNS` on one capture."""
     f, w, b, bits, col, lit = gen(code, ratio, seed, size)
     d, noise, fdr, idx = decode_with_model(f, w, b, bits, code)
-    S = samples_of(f, w, b, bits, lit)
-    X = symbols(code)
+    S = ev.samples_of(f, w, b, bits, lit)
+    X = ev.symbols(code)
     truth_rows = col[lit].astype(np.int64)
     every = np.broadcast_to(np.arange(code.size, dtype=np.int64), (S.shape[0], code.size))
     # the decode's own model over every row, with its own P(not lit)

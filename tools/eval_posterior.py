@@ -73,6 +73,19 @@ def sim_levels(code, ratio, seed, size):
     return cap.white / 65535.0, cap.black / 65535.0
 
 
+def samples_of(frames: np.ndarray, white: np.ndarray, black: np.ndarray, bits: int, where: np.ndarray) -> np.ndarray:
+    """(P, n + 2) float64 normalised samples (code frames, white, black) of the pixels ``where``
+    ((H, W) bool), in raster order."""
+    r = np.concatenate([frames, white[None], black[None]]).astype(np.float64) / float(2 ** bits - 1)
+    return np.ascontiguousarray(r.reshape(r.shape[0], -1).T[where.ravel()])
+
+
+def symbols(code) -> np.ndarray:
+    """(rows, n + 2) float64 0 / 1: every codebook row's symbols, then white (1) and black (0)."""
+    return np.ascontiguousarray(np.concatenate([code.codebook.astype(np.float64), np.ones((code.size, 1)),
+                                                np.zeros((code.size, 1))], 1))
+
+
 def bound_costs(samples, on, off, code, noise):
     """(true, own): (P, N) float64 costs (-2 log-likelihood up to a per-pixel constant) of every
     codebook row of a binary code for P pixels.  samples: (P, n + 2) normalised, the n code
@@ -84,7 +97,7 @@ def bound_costs(samples, on, off, code, noise):
     a, beta = noise
     r = np.asarray(samples, np.float64)
     m = r.shape[1]
-    x = np.concatenate([code.codebook.astype(np.float64), np.ones((code.size, 1)), np.zeros((code.size, 1))], 1)
+    x = symbols(code)
     hi, lo = np.asarray(on, np.float64)[:, None], np.asarray(off, np.float64)[:, None]
     v1, v0 = a + beta * hi, a + beta * lo
     true = ((r - hi) ** 2 / v1 + np.log(v1) - (r - lo) ** 2 / v0 - np.log(v0)) @ x.T
@@ -103,8 +116,7 @@ def bound_error(frames, white, black, bits, on, off, code, col, lit, noise, max_
     the best, published where below max_error.  frames (n, H, W), white / black (H, W) raw at
     ``bits``; on / off (H, W) true levels, normalised; col (H, W) true rows; lit (H, W) bool;
     noise (a, beta).  On lit pixels only (the bound's question is the column, not "lit?")."""
-    r = np.concatenate([frames, white[None], black[None]]).astype(np.float64) / float(2 ** bits - 1)
-    samples = r.reshape(r.shape[0], -1).T[lit.ravel()]
+    samples = samples_of(frames, white, black, bits, lit)
     rows = np.arange(code.size)
     truth_col = col[lit]
 
