@@ -48,6 +48,36 @@ def test_statistic_matches_the_numpy_reference(inverse):
     assert np.isnan(got[0, 0]) and np.isnan(got[0, 1]) and np.isfinite(got[1:]).all()
 
 
+@pytest.mark.parametrize("name, inverse, dtype", [("ecc-22-10", False, np.uint16), ("gray-10", True, np.uint8),
+                                                  ("ecc-31-10", True, np.float32), ("ecc-63-10", False, np.float64)])
+def test_the_binary_kernel_is_the_general_one_bit_for_bit(name, inverse, dtype):
+    """`misfit_statistic` reads a binary code's symbols as packed bits (`_misfit_stat_binary`); the
+    general kernel (`_misfit_stat`, the one q-ary codes and binary codes of more than 64 samples
+    use) gives the same values bit for bit: random samples, rows (-1 included), full-scale samples."""
+    from edge.decode import misfit as M
+    from edge.decode.posterior import _samples, _xtab
+
+    code = get_code(name)
+    rng = np.random.default_rng(3)
+    h, w = 7, 45
+    top = 1.0 if np.issubdtype(dtype, np.floating) else np.iinfo(dtype).max
+    scale = 1.0 if top == 1.0 else 1.0 / top
+    draw = lambda *shape: (rng.random(shape) * top).astype(dtype)  # noqa: E731
+    f, wh, bl = draw(code.n, h, w), draw(h, w), draw(h, w)
+    inv = draw(code.n, h, w) if inverse else None
+    f[2, 3, 4] = dtype(top)  # a sample at full scale
+    best = rng.integers(-1, code.size, (h, w)).astype(np.int32)
+    xtab = _xtab(code, inverse)
+    packed = M.packed_symbols(xtab)
+    assert packed.size == code.size and ((packed[:, None] >> np.arange(xtab.shape[1], dtype=np.uint64)) & 1 == xtab).all()
+    got = misfit_statistic(f, wh, bl, scale, code, best, (4e-6, 1.6e-3), inverse=inv)
+    want = np.empty((h, w), np.float32)
+    M._misfit_stat(_samples(f, inv), wh, bl, np.float64(scale), xtab, best, 4e-6, 1.6e-3, want)
+    assert np.array_equal(got, want, equal_nan=True) and np.isnan(got[3, 4]) and np.isnan(got[best < 0]).all()
+    assert M.packed_symbols(_xtab(get_code("ecc-63-10"), True)).size == 0  # 126 samples: the general kernel
+    assert M.packed_symbols(_xtab(get_code("nary3-6"), False)).size == 0  # q-ary symbols
+
+
 def test_threshold_is_the_scaled_chi2_tail():
     """On chi2 draws of the right degrees of freedom the threshold is their 1 - MISFIT_LEVEL
     quantile (scale 1), and it scales with the draws (up to MAX_SCALE)."""

@@ -35,6 +35,8 @@ def _tool(*argv: str, cwd: Path) -> subprocess.CompletedProcess:
     (("bench_mcap_encoding.py", "--frames", "0"), "bench_mcap_encoding.py: error: --frames and --repeats"),  # IndexError
     (("bench_outputs.py", "--repeats", "1"), "bench_outputs.py: error: expected --repeats >= 3"),  # exit 1
     (("bench_code_search.py", "--pairs", "5y3"), "bench_code_search.py: error: argument --pairs"),  # exit 1
+    (("bench_ab.py", "--cases", "real", "--real", "missing"), "bench_ab.py: error: --real: missing is not a folder"),
+    (("bench_ab.py", "--rev", "no-such-rev"), "bench_ab.py: error: --rev 'no-such-rev' is not a revision"),
 ])
 def test_bad_input_is_one_line_and_exit_2(tmp_path, argv, expect):
     r = _tool(*argv, cwd=tmp_path)

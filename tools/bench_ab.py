@@ -11,8 +11,10 @@ the error rule states exactly).
     python tools/bench_ab.py --rev HEAD~1 --rounds 4 --repeats 3
 
 Cases: "easy" and "hard" (`tools/bench_decode.py`'s two 600 x 700 inputs, `decode()` with its
-defaults), "hard-band" (the same in its disparity band) and "service" (`DepthPipeline.process`
-of a `sim-dlp` stack from the simulated sensor).  Each side compiles into its own numba cache
+defaults), "hard-band" (the same in its disparity band), "service" (`DepthPipeline.process`
+of a `sim-dlp` stack from the simulated sensor) and "real" (the real OpenCV Gray-code capture,
+``--real``, pattern + inverse frames, `decode()` with its defaults: the confidence rule and its
+goodness-of-fit test; in the default cases where the folder is there).  Each side compiles into its own numba cache
 (the revision's under the temporary directory; this tree's is ``NUMBA_CACHE_DIR`` where set);
 no compile is timed: every run calls each case once before it times it.
 """
@@ -32,7 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
-CASES = ("easy", "hard", "hard-band", "service")
+CASES = ("easy", "hard", "hard-band", "service", "real")
+#: The real capture beside the repository (`tools/profile_decode.py`'s).
+REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "procam-graycode" / "capture_0"
 
 
 def _digest(*arrays: np.ndarray) -> str:
@@ -48,7 +52,7 @@ def _decoded_digest(d) -> str:
                    np.where(error < 0.5, error, np.float32(1.0)))
 
 
-def child(cases: list[str], repeats: int) -> dict:
+def child(cases: list[str], repeats: int, real: Path) -> dict:
     """Run in the side's tree (cwd): {case: {"median_s": ..., "digest": ...}}."""
     sys.path.insert(0, str(Path.cwd() / "tools"))
     sys.path.insert(0, str(Path.cwd()))
@@ -89,6 +93,11 @@ def child(cases: list[str], repeats: int) -> dict:
                 self.column, self.valid, self.error = r.depth_mm, r.depth_mm > 0, None
 
         jobs["service"] = lambda: _Depth(pipe.process(stack))
+    if "real" in cases:
+        from edge.decode import load_opencv_graycode
+
+        rc = load_opencv_graycode(real, (1024, 768))
+        jobs["real"] = lambda: decode(rc.frames, rc.white, rc.black, rc.code, columns=rc.columns, inverse=rc.inverse)
     out = {}
     for name in cases:
         fn = jobs[name]
@@ -102,9 +111,10 @@ def child(cases: list[str], repeats: int) -> dict:
     return out
 
 
-def _run_side(root: Path, cache: Path, cases: list[str], repeats: int) -> dict:
+def _run_side(root: Path, cache: Path, cases: list[str], repeats: int, real: Path) -> dict:
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(root), MPLBACKEND="Agg")
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--child", "--repeats", str(repeats), "--cases", *cases]
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--child", "--repeats", str(repeats), "--real", str(real),
+           "--cases", *cases]
     proc = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True)
     if proc.returncode != 0:
         raise SystemExit(f"bench_ab: the run in {root} failed:\n{proc.stderr[-3000:]}")
@@ -117,18 +127,25 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rounds", type=int, default=4,
                     help="alternating rounds (each side once per round; default %(default)s)")
     ap.add_argument("--repeats", type=int, default=3, help="timed calls per case in each run (default %(default)s)")
-    ap.add_argument("--cases", nargs="+", choices=CASES, default=list(CASES),
-                    help=f"what to time (default: all, {' '.join(CASES)})")
+    ap.add_argument("--cases", nargs="+", choices=CASES, default=None,
+                    help=f"what to time (default: all, {' '.join(CASES)}; 'real' only where --real is there)")
+    ap.add_argument("--real", type=Path, default=REAL,
+                    help="the real capture folder of the 'real' case (default: the repository's ../shared/data/"
+                         "procam-graycode/capture_0)")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
-        print(json.dumps(child(args.cases, args.repeats)))
+        print(json.dumps(child(args.cases, args.repeats, args.real)))
         return 0
+    real = args.real.resolve()  # side A runs in a temporary worktree: an absolute path
+    if args.cases is None:
+        args.cases = [c for c in CASES if c != "real" or real.is_dir()]
+    elif "real" in args.cases and not real.is_dir():
+        raise ValueError(f"--real: {args.real} is not a folder (the 'real' case needs the capture)")
     here = Path(__file__).resolve().parents[1]
     rev = subprocess.run(["git", "rev-parse", "--short", args.rev], cwd=here, capture_output=True, text=True)
     if rev.returncode != 0:
-        print(f"bench_ab: --rev {args.rev!r} is not a revision of this repository", file=sys.stderr)
-        return 2
+        raise ValueError(f"--rev {args.rev!r} is not a revision of this repository")
     with tempfile.TemporaryDirectory(prefix="bench-ab-") as tmp:
         tree = Path(tmp) / "a"
         subprocess.run(["git", "worktree", "add", "--detach", "-q", str(tree), args.rev],
@@ -141,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
             runs: dict[str, list[dict]] = {"A": [], "B": []}
             for r in range(args.rounds):
                 for side in (("A", "B") if r % 2 == 0 else ("B", "A")):
-                    runs[side].append(_run_side(*sides[side], args.cases, args.repeats))
+                    runs[side].append(_run_side(*sides[side], args.cases, args.repeats, real))
                 print(f"  round {r + 1}: " + "  ".join(
                     f"{c} {runs['A'][-1][c]['median_s'] * 1e3:.0f}/{runs['B'][-1][c]['median_s'] * 1e3:.0f} ms"
                     for c in args.cases), flush=True)

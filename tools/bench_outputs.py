@@ -92,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
         z.close()
     ref = rows[0][1]
     print(f"{base.name}: {w}x{h} depth, {int(np.count_nonzero(depth))} valid pixels, median of {args.repeats}")
-    print(f"| sinks per depth map | median ms | vs baseline |\n|---|---|---|")
+    print("| sinks per depth map | median ms | vs baseline |\n|---|---|---|")
     for name, ms in rows:
         print(f"| {name} | {ms:.2f} | {ms / ref:.1f}x |")
     return 0

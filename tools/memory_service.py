@@ -45,7 +45,7 @@ import types
 import weakref
 from collections import defaultdict, deque
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any, Iterable
 
 import numpy as np
 

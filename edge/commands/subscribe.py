@@ -21,8 +21,6 @@ import argparse
 import statistics
 import time
 
-import numpy as np
-
 from edge.profiles import DEFAULT_PROFILE
 
 from ._args import check_output_file

@@ -135,6 +135,93 @@ def _misfit_stat(frames, white, black, scale, xtab, best, a, beta, out):
             out[yy, xx] = np.nan if best[yy, xx] < 0 or top[xx] >= FULL_SCALE_SAMPLE else acc[xx]
 
 
+@njit(cache=True, parallel=True)
+def _misfit_stat_binary(frames, white, black, scale, packed, best, a, beta, out):
+    """`_misfit_stat` of a binary code (every symbol 0 or 1) with at most 64 samples of code per
+    pixel, branch-free so that the row loops vectorise: each pixel's symbols are the bits of its
+    row's packed word (`packed_symbols`: ``packed[row] >> i & 1`` for sample i), the sums and residuals are taken in
+    `_misfit_stat`'s order with its operations (a symbol-1 sample's mean is ``b + c``, a symbol-0
+    sample's ``b``), so the values are `_misfit_stat`'s bit for bit."""
+    n, height, width = frames.shape
+    m = n + 2
+    for yy in prange(height):
+        sx = np.ones(width, np.float64)  # white's x = 1
+        sxx = np.ones(width, np.float64)
+        sr = np.zeros(width, np.float64)
+        sxr = np.empty(width, np.float64)
+        top = np.empty(width, np.float64)
+        words = np.empty(width, np.uint64)
+        for xx in range(width):
+            words[xx] = packed[max(best[yy, xx], 0)]
+            sxr[xx] = white[yy, xx] * scale
+            top[xx] = frames[0, yy, xx] * scale
+        for i in range(n):
+            src = frames[i, yy]
+            shift = np.uint64(i)
+            for xx in range(width):
+                r = src[xx] * scale
+                x = 1.0 if ((words[xx] >> shift) & np.uint64(1)) != np.uint64(0) else 0.0
+                sx[xx] += x
+                sxx[xx] += x * x
+                sxr[xx] += x * r
+                sr[xx] += r
+                top[xx] = max(top[xx], r)
+        bb = np.empty(width, np.float64)
+        b1 = np.empty(width, np.float64)
+        r0 = np.empty(width, np.float64)
+        r1 = np.empty(width, np.float64)
+        acc = np.zeros(width, np.float64)
+        for xx in range(width):
+            w_ = white[yy, xx] * scale
+            b_ = black[yy, xx] * scale
+            sr[xx] += w_
+            sr[xx] += b_
+            top[xx] = max(top[xx], max(w_, b_))
+            b, c = _ls_levels(m, sx[xx], sxx[xx], sxr[xx], sr[xx])
+            m1 = b + c
+            bb[xx] = b
+            b1[xx] = m1
+            r0[xx] = 1.0 / (a + beta * (b if b > 0.0 else 0.0))
+            r1[xx] = 1.0 / (a + beta * (m1 if m1 > 0.0 else 0.0))
+        for i in range(n):
+            src = frames[i, yy]
+            shift = np.uint64(i)
+            for xx in range(width):
+                one = ((words[xx] >> shift) & np.uint64(1)) != np.uint64(0)
+                e = src[xx] * scale - (b1[xx] if one else bb[xx])
+                acc[xx] += e * e * (r1[xx] if one else r0[xx])
+        for xx in range(width):
+            e = white[yy, xx] * scale - b1[xx]
+            acc[xx] += e * e * r1[xx]
+            e = black[yy, xx] * scale - bb[xx]
+            acc[xx] += e * e * r0[xx]
+            out[yy, xx] = np.nan if best[yy, xx] < 0 or top[xx] >= FULL_SCALE_SAMPLE else acc[xx]
+
+
+def packed_symbols(xtab: np.ndarray) -> np.ndarray:
+    """(rows,) uint64: bit i of row r set where ``xtab[r, i] == 1``, for a table of 0 / 1 symbols
+    with at most 64 columns (a binary code's `edge.decode.posterior._xtab`, inverse frames
+    included); empty (0,) for any other table, which `_misfit_stat` reads as it is."""
+    if xtab.shape[1] > 64 or not np.isin(xtab, (0.0, 1.0)).all():
+        return np.zeros(0, np.uint64)
+    bits = (xtab == 1.0).astype(np.uint64) << np.arange(xtab.shape[1], dtype=np.uint64)
+    return np.ascontiguousarray(bits.sum(axis=1, dtype=np.uint64))
+
+
+_PACKED: dict[tuple[int, bool], tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _packed(code: Code, inverse: bool) -> np.ndarray:
+    """`packed_symbols` of ``_xtab(code, inverse)``, cached with the table it was made from."""
+    key = (id(code), bool(inverse))
+    xtab = _xtab(code, inverse)
+    hit = _PACKED.get(key)
+    if hit is None or hit[0] is not xtab:
+        hit = (xtab, packed_symbols(xtab))
+        _PACKED[key] = hit
+    return hit[1]
+
+
 def misfit_statistic(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, code: Code,
                      best: np.ndarray, noise: tuple[float, float], *,
                      inverse: np.ndarray | None = None) -> np.ndarray:
@@ -146,9 +233,14 @@ def misfit_statistic(frames: np.ndarray, white: np.ndarray, black: np.ndarray, s
     best = its candidates[..., 0], the values are `edge.decode.posterior.Posterior.misfit`'s."""
     samples = _samples(frames, inverse)
     out = np.empty(np.shape(white), np.float32)
-    _misfit_stat(samples, np.ascontiguousarray(white), np.ascontiguousarray(black), np.float64(scale),
-                 _xtab(code, inverse is not None), np.ascontiguousarray(best, np.int32), float(noise[0]), float(noise[1]),
-                 out)
+    xtab = _xtab(code, inverse is not None)
+    packed = _packed(code, inverse is not None)
+    args = (np.ascontiguousarray(white), np.ascontiguousarray(black), np.float64(scale))
+    rest = (np.ascontiguousarray(best, np.int32), float(noise[0]), float(noise[1]), out)
+    if packed.size == 0:
+        _misfit_stat(samples, *args, xtab, *rest)
+    else:
+        _misfit_stat_binary(samples, *args, packed, *rest)
     return out
 
 
