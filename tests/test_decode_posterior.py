@@ -449,13 +449,14 @@ def test_tail_words_match_the_exact_sum_over_words(with_prior, reference):
 
 def test_stable_order_is_numpys_stable_argsort():
     """`posterior.stable_order` (the noise fit's sort) gives np.argsort(kind="stable")'s indices:
-    distinct values, a few runs of ties (-0.0 and 0.0 among them), many runs, NaN."""
+    distinct values, a few runs of ties (-0.0 and 0.0 among them), many runs, NaN; signed values
+    over the whole float64 range with infinities and NaNs of both signs; float32 input; empty."""
     from edge.decode.posterior import stable_order
 
     rng = np.random.default_rng(3)
-    for trial in range(200):
+    for trial in range(250):
         n = int(rng.integers(1, 3000))
-        kind = trial % 4
+        kind = trial % 5
         x = rng.random(n)
         if kind == 1:
             x = rng.integers(0, 200, n).astype(np.float64)
@@ -466,4 +467,13 @@ def test_stable_order_is_numpys_stable_argsort():
         elif kind == 3:
             x[rng.integers(0, n, 5)] = np.nan
             x[rng.integers(0, n, 5)] = 0.25
+        elif kind == 4:
+            x = rng.standard_normal(n) * 10.0 ** rng.integers(-300, 300, n)
+            x[rng.integers(0, n, 3)] = -np.inf
+            x[rng.integers(0, n, 3)] = np.inf
+            x[rng.integers(0, n, 3)] = -np.nan
+            x[rng.integers(0, n, 3)] = -0.0
         assert np.array_equal(stable_order(x), np.argsort(x, kind="stable")), trial
+    y = rng.random(500).astype(np.float32)
+    assert np.array_equal(stable_order(y), np.argsort(y, kind="stable"))
+    assert stable_order(np.zeros(0)).shape == (0,)

@@ -433,19 +433,54 @@ def _fit_stats(frames, white, black, scale, xtab, best, step_y, step_x, out_s2, 
             out_mu[ry, rx] = mu / m
 
 
-def stable_order(x: np.ndarray) -> np.ndarray:
-    """``np.argsort(x, kind="stable")`` of a 1-d float array, the same indices, faster where
-    numpy's default sort is SIMD (and the noise fit's levels hold many ties): that sort, then
-    the positions numbered by run of equal values (NaN equal to NaN) and the keys ``run * size +
-    index`` sorted (int64, unique: ascending index within a run)."""
+@njit(cache=True)
+def _radix_order(x):
+    """`stable_order`'s kernel: each value's order key (the float64 bits made to sort as unsigned
+    integers: the sign bit flipped for x >= 0, every bit for x < 0; -0.0 keyed as 0.0, every NaN
+    as the largest key), then a least-significant-digit radix sort of the indices by those keys,
+    one pass per byte, skipping the bytes all keys share.  Each pass is stable, so equal values
+    keep ascending index."""
     n = x.size
-    order = np.argsort(x)
-    s = x[order]
-    new_run = s[1:] != s[:-1]
-    new_run &= ~(np.isnan(s[1:]) & np.isnan(s[:-1]))
-    run = np.zeros(n, np.int64)
-    np.cumsum(new_run, out=run[1:])
-    return np.sort(run * n + order) % n
+    xb = x.view(np.uint64)
+    sign = np.uint64(1) << np.uint64(63)
+    keys = np.empty(n, np.uint64)
+    for i in range(n):
+        b = xb[i]
+        if x[i] != x[i]:
+            keys[i] = ~np.uint64(0)
+        else:
+            if b == sign:
+                b = np.uint64(0)
+            keys[i] = ~b if (b & sign) != np.uint64(0) else (b | sign)
+    order = np.arange(n)
+    spare = np.empty(n, np.int64)
+    spare_keys = np.empty(n, np.uint64)
+    count = np.empty(257, np.int64)
+    for p in range(8):
+        shift = np.uint64(8 * p)
+        count[:] = 0
+        for i in range(n):
+            count[((keys[i] >> shift) & np.uint64(255)) + np.uint64(1)] += 1
+        if count.max() == n:  # one value of this byte: the pass would leave the order as it is
+            continue
+        for d in range(256):
+            count[d + 1] += count[d]
+        for i in range(n):
+            d = (keys[i] >> shift) & np.uint64(255)
+            j = count[d]
+            count[d] = j + 1
+            spare[j] = order[i]
+            spare_keys[j] = keys[i]
+        order, spare = spare, order
+        keys, spare_keys = spare_keys, keys
+    return order
+
+
+def stable_order(x: np.ndarray) -> np.ndarray:
+    """``np.argsort(x, kind="stable")`` of a 1-d float array: the same int64 indices (ascending,
+    -0.0 equal to 0.0, NaN last, equal values in index order), by a radix sort (`_radix_order`:
+    linear in the size; numpy's stable sort of the noise fit's 40000 levels took 5x longer)."""
+    return _radix_order(np.ascontiguousarray(x, np.float64))
 
 
 def _chi2_median_ratio(k: int) -> float:
