@@ -29,9 +29,12 @@ GRAY, ECC = get_code("gray-10"), get_code("ecc-22-10")
 # -------------------------------------------------------------------------- brute-force references
 
 def _split_reference(samples: np.ndarray) -> tuple[float, float]:
-    """Lloyd's two-means as `split_levels` states it (samples: the n frames, then white, black)."""
+    """Lloyd's two-means as `split_levels` states it (samples: the n frames, then white, black),
+    in its arithmetic: sums in the samples' order, the lower class's mean as (total - upper sum)
+    / its count (a sample exactly at a threshold goes by those roundings)."""
     s = samples.astype(np.float64)
     top, bottom = s.max(), s.min()
+    total = sum(s.tolist())
     t = 0.5 * (s[-2] + s[-1]) if s[-2] > s[-1] else 0.5 * (top + bottom)
     hi, lo, last = top, bottom, -1
     for _ in range(4):
@@ -41,7 +44,8 @@ def _split_reference(samples: np.ndarray) -> tuple[float, float]:
             up = s > t
             if up.all() or not up.any():
                 break
-        hi, lo = s[up].mean(), s[~up].mean()
+        upper = sum(s[up].tolist())
+        hi, lo = upper / up.sum(), (total - upper) / (~up).sum()
         t = 0.5 * (hi + lo)
         if up.sum() == last:
             break
@@ -50,13 +54,18 @@ def _split_reference(samples: np.ndarray) -> tuple[float, float]:
 
 
 def test_split_levels_matches_brute_force():
+    """Random pixels, and (row 1, in one block of lanes with ordinary pixels) flat pixels, pixels
+    whose calibration split leaves one class, white <= black; 70 columns: a partial lane block."""
     rng = np.random.default_rng(0)
-    frames = rng.integers(0, 256, (10, 5, 7)).astype(np.uint8)
-    white = rng.integers(100, 256, (5, 7)).astype(np.uint8)
-    black = rng.integers(0, 100, (5, 7)).astype(np.uint8)
+    frames = rng.integers(0, 256, (10, 5, 70)).astype(np.uint8)
+    white = rng.integers(100, 256, (5, 70)).astype(np.uint8)
+    black = rng.integers(0, 100, (5, 70)).astype(np.uint8)
+    frames[:, 1, :6], white[1, :6], black[1, :6] = 9, 9, 9  # flat
+    frames[:, 1, 6:12], white[1, 6:12], black[1, 6:12] = 200, 250, 180  # every code sample above the midpoint
+    white[1, 12:20], black[1, 12:20] = black[1, 12:20], white[1, 12:20]  # white <= black
     hi, lo, _ = split_levels(frames, white, black, 1 / 255)
     for y in range(5):
-        for x in range(7):
+        for x in range(70):
             ref_hi, ref_lo = _split_reference(np.r_[frames[:, y, x], white[y, x], black[y, x]] / 255)
             assert hi[y, x] == pytest.approx(max(ref_hi, ref_lo + 1e-6), rel=1e-5)
             assert lo[y, x] == pytest.approx(ref_lo, rel=1e-5, abs=1e-7)

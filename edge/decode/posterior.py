@@ -215,7 +215,7 @@ def _lane_above(R, m, t, sh, kh):
             kh[l] += 1 if up else 0
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def _split_levels(frames, white, black, scale, out_hi, out_lo, out_s2, out_mu):
     """Step 1 per pixel, LANES pixels of a row at a time (every lane runs the same Lloyd steps as
     one pixel alone: the sums in the samples' order, a lane that has converged is left as it is)."""
@@ -262,31 +262,32 @@ def _split_levels(frames, white, black, scale, out_hi, out_lo, out_s2, out_mu):
                 live[l] = True
             for _ in range(SPLIT_ITERATIONS):
                 _lane_above(R, m, t, sh, kh)
+                # the lane updates are branch-free (selects), so that they vectorise: a lane that
+                # is not live keeps every value, as if skipped
                 again = False
                 for l in range(L):
-                    one_class = live[l] and (kh[l] == 0 or kh[l] == m)
-                    if one_class:  # one class: split at the mid-range instead
-                        t[l] = 0.5 * (top[l] + bottom[l])
-                    again = again or one_class
+                    k1 = kh[l]
+                    one_class = live[l] & ((k1 == 0) | (k1 == m))
+                    # one class: split at the mid-range instead
+                    t[l] = 0.5 * (top[l] + bottom[l]) if one_class else t[l]
+                    again |= one_class
                     t2[l] = t[l]
                 if again:
                     _lane_above(R, m, t2, sh2, kh2)
                 for l in range(L):
-                    if not live[l]:
-                        continue
-                    s_, k_ = sh[l], kh[l]
-                    if k_ == 0 or k_ == m:
-                        s_, k_ = sh2[l], kh2[l]
-                        if k_ == 0 or k_ == m:
-                            live[l] = False
-                            continue
-                    hi[l] = s_ / k_
-                    lo[l] = (total[l] - s_) / (m - k_)
-                    t[l] = 0.5 * (hi[l] + lo[l])
-                    if k_ == count_hi[l]:
-                        live[l] = False
-                        continue
-                    count_hi[l] = k_
+                    k1 = kh[l]
+                    second = (k1 == 0) | (k1 == m)  # (then sh2 / kh2 were counted for a live lane)
+                    s_ = sh2[l] if second else sh[l]
+                    k_ = kh2[l] if second else k1
+                    moves = live[l] & (k_ != 0) & (k_ != m)
+                    h_ = s_ / k_  # (error_model "numpy": where k_ is 0 or m these are not kept)
+                    o_ = (total[l] - s_) / (m - k_)
+                    hi[l] = h_ if moves else hi[l]
+                    lo[l] = o_ if moves else lo[l]
+                    t[l] = 0.5 * (h_ + o_) if moves else t[l]
+                    changed = moves & (k_ != count_hi[l])
+                    count_hi[l] = k_ if changed else count_hi[l]
+                    live[l] = changed
                 if not live.any():
                     break
             for l in range(L):
