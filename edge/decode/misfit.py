@@ -139,9 +139,9 @@ def _misfit_stat(frames, white, black, scale, xtab, best, a, beta, out):
 def _misfit_stat_binary(frames, white, black, scale, packed, best, a, beta, out):
     """`_misfit_stat` of a binary code (every symbol 0 or 1) with at most 64 samples of code per
     pixel, branch-free so that the row loops vectorise: each pixel's symbols are the bits of its
-    row's packed word (`packed_symbols`: ``packed[row] >> i & 1`` for sample i), the sums and residuals are taken in
-    `_misfit_stat`'s order with its operations (a symbol-1 sample's mean is ``b + c``, a symbol-0
-    sample's ``b``), so the values are `_misfit_stat`'s bit for bit."""
+    row's packed word (`packed_symbols`: ``packed[row] >> i & 1`` for sample i), the sums and
+    residuals are taken in `_misfit_stat`'s order with its operations (a symbol-1 sample's mean
+    is ``b + c``, a symbol-0 sample's ``b``), so the values are `_misfit_stat`'s bit for bit."""
     n, height, width = frames.shape
     m = n + 2
     for yy in prange(height):
