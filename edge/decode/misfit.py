@@ -59,6 +59,70 @@ MAX_SCALE = 4.0
 SCALE_PIXELS = 40000
 
 
+@njit(cache=True, inline="always")
+def _row_sums(frames, white, yy, scale):
+    """Row yy's running sums of the least-squares fit before its code samples, (width,) float64
+    each: (sx, sxx, sxr, sr, top) with white's sample (x = 1) in sx, sxx and sxr, sr = 0 (white
+    and black join it last, `_row_levels`) and top the first frame's sample."""
+    width = white.shape[1]
+    sx = np.ones(width, np.float64)
+    sxx = np.ones(width, np.float64)
+    sr = np.zeros(width, np.float64)
+    sxr = np.empty(width, np.float64)
+    top = np.empty(width, np.float64)
+    for xx in range(width):
+        sxr[xx] = white[yy, xx] * scale
+        top[xx] = frames[0, yy, xx] * scale
+    return sx, sxx, sxr, sr, top
+
+
+@njit(cache=True, inline="always")
+def _add_sample(xx, r, x, sx, sxx, sxr, sr, top):
+    """Pixel xx's running sums of the fit gain one code sample r of symbol x (and ``top`` its max)."""
+    sx[xx] += x
+    sxx[xx] += x * x
+    sxr[xx] += x * r
+    sr[xx] += r
+    top[xx] = max(top[xx], r)
+
+
+@njit(cache=True, inline="always")
+def _row_levels(white, black, yy, scale, m, a, beta, sx, sxx, sxr, sr, top):
+    """Row yy's pixels (width = len(sx)) after the code samples' sums: black and white added to
+    the plain sum and ``top``; returns (bb, cc, r0, r1), (width,) float64 each: the least-squares
+    levels (off, contrast) and the reciprocal variances of the off and on levels."""
+    width = sx.size
+    bb = np.empty(width, np.float64)
+    cc = np.empty(width, np.float64)
+    r0 = np.empty(width, np.float64)
+    r1 = np.empty(width, np.float64)
+    for xx in range(width):
+        w_ = white[yy, xx] * scale
+        b_ = black[yy, xx] * scale
+        sr[xx] += w_
+        sr[xx] += b_
+        top[xx] = max(top[xx], max(w_, b_))
+        b, c = _ls_levels(m, sx[xx], sxx[xx], sxr[xx], sr[xx])
+        bb[xx] = b
+        cc[xx] = c
+        m1 = b + c
+        r0[xx] = 1.0 / (a + beta * (b if b > 0.0 else 0.0))
+        r1[xx] = 1.0 / (a + beta * (m1 if m1 > 0.0 else 0.0))
+    return bb, cc, r0, r1
+
+
+@njit(cache=True, inline="always")
+def _row_finish(white, black, best, yy, scale, bb, cc, r0, r1, top, acc, out):
+    """Row yy's statistics: white's and black's residuals added to the code samples' ``acc``, NaN
+    where there is no candidate or a sample is at full scale (the linear model cannot be tested)."""
+    for xx in range(bb.size):
+        e = white[yy, xx] * scale - (bb[xx] + cc[xx])
+        acc[xx] += e * e * r1[xx]
+        e = black[yy, xx] * scale - bb[xx]
+        acc[xx] += e * e * r0[xx]
+        out[yy, xx] = np.nan if best[yy, xx] < 0 or top[xx] >= FULL_SCALE_SAMPLE else acc[xx]
+
+
 @njit(cache=True, parallel=True)
 def _misfit_stat(frames, white, black, scale, xtab, best, a, beta, out):
     """Row by row, each frame's row read contiguously, in the arithmetic and order of the
@@ -69,17 +133,11 @@ def _misfit_stat(frames, white, black, scale, xtab, best, a, beta, out):
     n, height, width = frames.shape
     m = n + 2
     for yy in prange(height):
-        sx = np.ones(width, np.float64)  # white's x = 1
-        sxx = np.ones(width, np.float64)
-        sr = np.zeros(width, np.float64)
-        sxr = np.empty(width, np.float64)
-        top = np.empty(width, np.float64)
+        sx, sxx, sxr, sr, top = _row_sums(frames, white, yy, scale)
         rows = np.empty(width, np.int64)
         xs = np.empty(width, np.float64)
         for xx in range(width):
             rows[xx] = max(best[yy, xx], 0)
-            sxr[xx] = white[yy, xx] * scale
-            top[xx] = frames[0, yy, xx] * scale
         for i in range(n):
             src = frames[i, yy]
             for xx in range(width):
@@ -87,28 +145,9 @@ def _misfit_stat(frames, white, black, scale, xtab, best, a, beta, out):
             for xx in range(width):
                 r = src[xx] * scale
                 x = xs[xx]
-                sx[xx] += x
-                sxx[xx] += x * x
-                sxr[xx] += x * r
-                sr[xx] += r
-                top[xx] = max(top[xx], r)
-        bb = np.empty(width, np.float64)
-        cc = np.empty(width, np.float64)
-        r0 = np.empty(width, np.float64)
-        r1 = np.empty(width, np.float64)
+                _add_sample(xx, r, x, sx, sxx, sxr, sr, top)
+        bb, cc, r0, r1 = _row_levels(white, black, yy, scale, m, a, beta, sx, sxx, sxr, sr, top)
         acc = np.zeros(width, np.float64)
-        for xx in range(width):
-            w_ = white[yy, xx] * scale
-            b_ = black[yy, xx] * scale
-            sr[xx] += w_
-            sr[xx] += b_
-            top[xx] = max(top[xx], max(w_, b_))
-            b, c = _ls_levels(m, sx[xx], sxx[xx], sxr[xx], sr[xx])
-            bb[xx] = b
-            cc[xx] = c
-            m1 = b + c
-            r0[xx] = 1.0 / (a + beta * (b if b > 0.0 else 0.0))
-            r1[xx] = 1.0 / (a + beta * (m1 if m1 > 0.0 else 0.0))
         for i in range(n):
             src = frames[i, yy]
             for xx in range(width):
@@ -126,13 +165,7 @@ def _misfit_stat(frames, white, black, scale, xtab, best, a, beta, out):
                     v = a + beta * (mi if mi > 0.0 else 0.0)
                     e = src[xx] * scale - mi
                     acc[xx] += e * e / v
-        for xx in range(width):
-            e = white[yy, xx] * scale - (bb[xx] + cc[xx])
-            acc[xx] += e * e * r1[xx]
-            e = black[yy, xx] * scale - bb[xx]
-            acc[xx] += e * e * r0[xx]
-            # no candidate; or a sample at full scale, where the linear model cannot be tested
-            out[yy, xx] = np.nan if best[yy, xx] < 0 or top[xx] >= FULL_SCALE_SAMPLE else acc[xx]
+        _row_finish(white, black, best, yy, scale, bb, cc, r0, r1, top, acc, out)
 
 
 @njit(cache=True, parallel=True)
@@ -145,57 +178,29 @@ def _misfit_stat_binary(frames, white, black, scale, packed, best, a, beta, out)
     n, height, width = frames.shape
     m = n + 2
     for yy in prange(height):
-        sx = np.ones(width, np.float64)  # white's x = 1
-        sxx = np.ones(width, np.float64)
-        sr = np.zeros(width, np.float64)
-        sxr = np.empty(width, np.float64)
-        top = np.empty(width, np.float64)
+        sx, sxx, sxr, sr, top = _row_sums(frames, white, yy, scale)
         words = np.empty(width, np.uint64)
         for xx in range(width):
             words[xx] = packed[max(best[yy, xx], 0)]
-            sxr[xx] = white[yy, xx] * scale
-            top[xx] = frames[0, yy, xx] * scale
         for i in range(n):
             src = frames[i, yy]
             shift = np.uint64(i)
             for xx in range(width):
                 r = src[xx] * scale
                 x = 1.0 if ((words[xx] >> shift) & np.uint64(1)) != np.uint64(0) else 0.0
-                sx[xx] += x
-                sxx[xx] += x * x
-                sxr[xx] += x * r
-                sr[xx] += r
-                top[xx] = max(top[xx], r)
-        bb = np.empty(width, np.float64)
-        b1 = np.empty(width, np.float64)
-        r0 = np.empty(width, np.float64)
-        r1 = np.empty(width, np.float64)
+                _add_sample(xx, r, x, sx, sxx, sxr, sr, top)
+        bb, cc, r0, r1 = _row_levels(white, black, yy, scale, m, a, beta, sx, sxx, sxr, sr, top)
         acc = np.zeros(width, np.float64)
-        for xx in range(width):
-            w_ = white[yy, xx] * scale
-            b_ = black[yy, xx] * scale
-            sr[xx] += w_
-            sr[xx] += b_
-            top[xx] = max(top[xx], max(w_, b_))
-            b, c = _ls_levels(m, sx[xx], sxx[xx], sxr[xx], sr[xx])
-            m1 = b + c
-            bb[xx] = b
-            b1[xx] = m1
-            r0[xx] = 1.0 / (a + beta * (b if b > 0.0 else 0.0))
-            r1[xx] = 1.0 / (a + beta * (m1 if m1 > 0.0 else 0.0))
         for i in range(n):
             src = frames[i, yy]
             shift = np.uint64(i)
             for xx in range(width):
                 one = ((words[xx] >> shift) & np.uint64(1)) != np.uint64(0)
-                e = src[xx] * scale - (b1[xx] if one else bb[xx])
+                b_ = bb[xx]
+                mean = b_ + cc[xx] if one else b_
+                e = src[xx] * scale - mean
                 acc[xx] += e * e * (r1[xx] if one else r0[xx])
-        for xx in range(width):
-            e = white[yy, xx] * scale - b1[xx]
-            acc[xx] += e * e * r1[xx]
-            e = black[yy, xx] * scale - bb[xx]
-            acc[xx] += e * e * r0[xx]
-            out[yy, xx] = np.nan if best[yy, xx] < 0 or top[xx] >= FULL_SCALE_SAMPLE else acc[xx]
+        _row_finish(white, black, best, yy, scale, bb, cc, r0, r1, top, acc, out)
 
 
 def packed_symbols(xtab: np.ndarray) -> np.ndarray:
