@@ -137,6 +137,44 @@ def test_fast_paths_equal_scalar_path(name, inverse):
             assert got[3]["second_class_pixels"] > 0  # the pending (second-class) stage ran
 
 
+@pytest.mark.parametrize("name", ["gray-10", "gray-6", "binary-10"])
+@pytest.mark.parametrize("inverse", [False, True])
+def test_lane_search_resolves_ties_at_cost_zero_exactly(name, inverse):
+    """Full-space codes (every n-bit word a codeword): pixels with two or more zero-cost bits
+    (8-bit samples where pattern and inverse are equal, or a sample exactly at the calibration
+    midpoint, under the normalised metric) tie 2**z words at cost 0; the lane search takes their
+    three least columns directly (`kernels.lanes._zero_set_top3`) and returns exactly what the
+    scalar search does, under both soft metrics, with all columns and with restricted ones
+    (where it falls back)."""
+    code = get_code(name)
+    rng = np.random.default_rng(21)
+    h, w = 5, 2 * LANES + 9
+    cols = rng.integers(0, code.size, (h, w))
+    cap = make_capture(code, cols, rng=rng, albedo=rng.uniform(0.0, 0.3, (h, w)), sigma_s=0.05,
+                       inverse=inverse)
+    frames, white, black = cap.frames.copy(), cap.white.copy(), cap.black.copy()
+    inv = None if cap.inverse is None else cap.inverse.copy()
+    tie = rng.random((code.n, h, w)) < 0.4  # samples that carry no evidence
+    if inv is not None:
+        frames[tie] = inv[tie]
+    else:
+        black &= np.uint8(0xFE)  # even sums: an integer midpoint
+        white = np.maximum(white & np.uint8(0xFE), black + 2).astype(np.uint8)
+        frames[tie] = ((white.astype(np.int32) + black) // 2).astype(np.uint8)[None].repeat(code.n, 0)[tie]
+    st = validate(frames, white, black, code, inverse=inv)
+    for metric in (METRIC_ML, METRIC_NORMALIZED):
+        for ncols in (code.size, code.size - 3):
+            kw = dict(metric=metric, sigma_r=SR, sigma_s=SS, columns=ncols, band=(False, 0, 0), stripe=1)
+            ref = cpu_backend.search(st, code, path="scalar", **kw)
+            got = cpu_backend.search(st, code, path="lanes", **kw)
+            for a, b in zip(ref[:3], got[:3]):
+                np.testing.assert_array_equal(a, b, err_msg=f"{metric} {ncols}")
+            if ncols < code.size:
+                assert got[3]["zero_set_pixels"] == 0
+            elif inverse or metric == METRIC_NORMALIZED:  # (under ML a midpoint sample is not a tie)
+                assert got[3]["zero_set_pixels"] > 0.5 * h * w, got[3]
+
+
 @pytest.mark.parametrize("name", ["ecc-22-10", "gray-10"])
 def test_band_fold_equals_band_scan(name):
     """The folded Walsh-Hadamard band kernel returns exactly what the band scan returns, for

@@ -98,7 +98,8 @@ class Decoded:
     stats: counters of the search: ``path`` ("lanes", "band", "band-scan", "scalar", "nary", "syndrome" or
         "hamming-search"), ``seconds``, and for the soft paths ``evaluated`` (codeword costs
         computed, summed over pixels) and ``brute_pixels``; the "lanes" path adds
-        ``second_class_pixels`` / ``second_class_blocks`` / ``blocks`` / ``pending_blocks``; the
+        ``second_class_pixels`` / ``second_class_blocks`` / ``blocks`` / ``pending_blocks`` /
+        ``zero_set_pixels`` (a full-space code's ties at cost 0 resolved directly); the
         "band" path adds ``wide_key_pixels`` (pixels whose costs exceeded the 32-bit keys and were
         redone with 64-bit keys, see `kernels.soft_band_fold`).  Under the "error" rule it adds
         ``rule``, ``levels``, ``level_source`` ("split", "calibration" or "refit",

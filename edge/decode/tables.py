@@ -82,6 +82,7 @@ class LaneTables(NamedTuple):
     cls_pstart: np.ndarray
     dpos: np.ndarray
     dcol: np.ndarray
+    full_space: bool
 
 
 class ScanTables(NamedTuple):
@@ -151,6 +152,8 @@ class CodeTables:
         sub_p0, sub_weight: (S,) int64 group-0 pattern and weight of each sublist.
         class_sub: (n + 2,) int64 first sublist of each weight class.
         column_linear: linear and the column index is a message (see module docstring).
+        full_space: column-linear and every n-bit word a codeword (size == 2**n, e.g. gray-n):
+            the lane search resolves a pixel's zero-cost ties directly (`kernels.lanes`).
         syn_col: (n,) int64 syndrome of the unit word e_i (the syndrome of h is the XOR of
             syn_col over the set bits of h); info_bit: (n,) int64 information-set index bits of e_i.
         col_bit: (n,) int64 column contribution of e_i (column-linear codes, else zeros).
@@ -189,6 +192,7 @@ class CodeTables:
     sub_weight: np.ndarray
     class_sub: np.ndarray
     column_linear: bool = False
+    full_space: bool = False
     syn_col: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     info_bit: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     col_bit: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
@@ -401,6 +405,7 @@ def _lane_tables(cb, masks, linear, info, comp_info, comp_syn, col_of_info, lead
     if not column_linear:
         return out
     out["col_bit"] = col_of_info[info_bit].astype(np.int64)
+    out["full_space"] = bool(size == 1 << n)
     out.update(_fold_tables(masks, size_bits, n))
     if leader.size:
         out["leader_col"] = col_of_info[out["leader_info"]].astype(np.int64)

@@ -129,6 +129,60 @@ def _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, nlanes, c_first, 
     return evaluated
 
 
+@njit(cache=True, inline="always")
+def _zero_set_top3(V, l, n, colref, col_bit, basis, leads, keys):
+    """Exact top-3 keys of lane l of a full-space code (every n-bit word a codeword: all V >= 0,
+    base 0) whose V has at least two zeros; False (keys untouched) otherwise.
+
+    The words c_ref ^ D, D a subset of the zero positions Z, cost 0, and every other word costs
+    >= 1: with |Z| >= 2 the top three are the three least columns of the affine space
+    colref ^ span(col_bit[i], i in Z) (the columns of a full-space column-linear code are its
+    words' images under an invertible linear map, so the col_bit are independent).  With the
+    span in fully reduced echelon form (each leading bit in one vector only), its least element
+    x0 is colref with every leading bit cleared, then x0 ^ (the vector of the lowest leading
+    bit), then x0 ^ (the vector of the second lowest).  Keys: the columns (cost 0).
+    Scratch basis, leads (n,) int64."""
+    z = 0
+    for i in range(n):
+        v = V[i, l]
+        if v < 0:
+            return False
+        if v != 0:
+            continue
+        x = np.int64(col_bit[i])
+        for j in range(z):
+            if x & leads[j]:
+                x ^= basis[j]
+        if x == 0:  # (not for a full-space code: its col_bit are independent)
+            continue
+        lead = np.int64(1)
+        while lead <= x >> np.int64(1):
+            lead <<= np.int64(1)
+        for j in range(z):
+            if basis[j] & lead:
+                basis[j] ^= x
+        basis[z] = x
+        leads[z] = lead
+        z += 1
+    if z < 2:
+        return False
+    x0 = np.int64(colref)
+    j0 = 0
+    for j in range(z):
+        if x0 & leads[j]:
+            x0 ^= basis[j]
+        if leads[j] < leads[j0]:
+            j0 = j
+    j1 = 1 if j0 == 0 else 0
+    for j in range(z):
+        if j != j0 and leads[j] < leads[j1]:
+            j1 = j
+    keys[0] = x0
+    keys[1] = x0 ^ basis[j0]
+    keys[2] = x0 ^ basis[j1]
+    return True
+
+
 @njit(cache=True)
 def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables, band,
                out_col, out_dist, out_conf, out_stats):
@@ -138,6 +192,7 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
     leader, leader_col, has_leader = tables.leader, tables.leader_col, tables.has_leader
     cls_weight, cls_start, cls_pstart = tables.cls_weight, tables.cls_start, tables.cls_pstart
     dpos, dcol = tables.dpos, tables.dcol
+    full_space = tables.full_space
     ncols, use_band, min_d, max_d, stripe = band.ncols, band.use_band, band.min_d, band.max_d, band.stripe
     n, height, width = frames.shape
     nclass = cls_weight.shape[0]
@@ -176,7 +231,12 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
     Pk3 = np.empty(L, np.int64)
     Pdmin = np.zeros(L, np.float64)
     Px = np.zeros(L, np.int64)
+    ZB = np.zeros(n, np.int64)
+    ZL = np.zeros(n, np.int64)
+    ZK = np.zeros(3, np.int64)
+    last_col = (1 << n) - 1  # a full-space code's last column
     npend = 0
+    n_zero = 0
     n_second = 0
     evaluated = 0
     blocks_second = 0
@@ -248,6 +308,13 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
             if (k3[l] >> IDX_BITS) < base[l] + lb[cidx, l]:
                 _write(out_col, out_dist, out_conf, yy, xx, k1[l], k2[l], k3[l], dmin[l], q_scale)
                 continue
+            # a full-space code, every column a candidate, two or more zero costs: the top three
+            # are the tied words' least columns (`_zero_set_top3`), no class search needed
+            if (full_space and lo[l] <= 0 and hi[l] >= last_col
+                    and _zero_set_top3(V, l, n, colref[l], col_bit, ZB, ZL, ZK)):
+                _write(out_col, out_dist, out_conf, yy, xx, ZK[0], ZK[1], ZK[2], dmin[l], q_scale)
+                n_zero += 1
+                continue
             # move lane l into the pending block
             any_second = True
             n_second += 1
@@ -295,6 +362,7 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
     out_stats[yy, 2] = blocks_second
     out_stats[yy, 3] = blocks
     out_stats[yy, 4] = pend_blocks
+    out_stats[yy, 5] = n_zero
 
 
 @njit(cache=True, parallel=True)
@@ -315,8 +383,14 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, model, tables, ban
 
     Columns outside a lane's candidates [lo, hi] (band, ncols < size) are dropped; the bounds
     stay valid, so the result is exact within the candidates.
-    out_stats (H, 5) int64 per row: pixels that needed the second class, codeword evaluations,
-    stage-1 blocks with at least one such pixel, stage-1 blocks, pending blocks.
+    A full-space code (`edge.decode.tables.CodeTables.full_space`: every n-bit word a codeword,
+    so base = 0 and every V >= 0) with every column a candidate of the lane: a lane with two or
+    more zero V after stage 1 (ties at cost 0, which the bounds cannot break: dark pixels whose
+    pattern and inverse samples are equal) takes its top three from `_zero_set_top3` instead of
+    the pending block.
+    out_stats (H, 6) int64 per row: pixels that needed the second class, codeword evaluations,
+    stage-1 blocks with at least one such pixel, stage-1 blocks, pending blocks, pixels resolved
+    by `_zero_set_top3`.
     """
     height = frames.shape[1]
     for yy in prange(height):
