@@ -23,5 +23,8 @@ def test_profile_decode_prints_every_row_and_restores_the_stages(capsys):
     for row in ("| easy |", "| easy, band [0, 128] |", "| hard |", "| hard, band [", "| as is |",
                 "| no tail anywhere |", "the tail is due on"):
         assert row in out, row
+    if tool.REAL.is_dir():  # the real capture's tables, where the data is beside the repository
+        assert "| whole | search_candidates | confidence_fit |" in out
+        assert "The search (path lanes):" in out and "ties at cost 0 resolved directly" in out
     assert all(getattr(decoder, name) is fn for name, fn in before.items())
     assert posterior._flips is flips and posterior._tail_pass is tail_pass

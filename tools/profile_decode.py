@@ -23,7 +23,9 @@ timing, not a decoder).
 Real-capture table (``--real``, where present): the real Gray-code capture with `decode()`'s
 defaults, which with inverse frames run the "confidence" rule: the whole call, the search, the
 goodness-of-fit test (`decoder.confidence_fit`) and its two parts, and the whole call without the
-test (the rule as it was before it), as a ratio.
+test (the rule as it was before it), as a ratio; then the search's counters (codeword costs
+evaluated per pixel, the shares of pixels that needed the lane search's second weight class and
+whose ties at cost 0 it resolved directly).
 """
 
 from __future__ import annotations
@@ -112,7 +114,7 @@ def real_rows(folder: Path, repeats: int) -> None:
     cap = load_opencv_graycode(folder, (1024, 768))
     call = lambda: decode(cap.frames, cap.white, cap.black, cap.code, columns=cap.columns,  # noqa: E731
                           inverse=cap.inverse)
-    call()
+    searched = call().stats
     seconds: dict[str, list[float]] = {}
     with stage_timer(seconds, CONFIDENCE_STAGES + FIT_PARTS):
         total = median_ms(call, repeats)
@@ -131,6 +133,10 @@ def real_rows(folder: Path, repeats: int) -> None:
     print("|---|---|---|---|---|---|---|")
     print(f"| {total:.1f} | {parts['search_candidates']:.1f} | {parts['confidence_fit']:.1f} | "
           f"{parts['fit_noise']:.1f} | {parts['fit_published']:.1f} | {without:.1f} | {total / without:.2f} |")
+    print(f"\nThe search (path {searched.get('path')}): {searched.get('evaluated', 0) / (h * w):.1f} codewords "
+          f"evaluated per pixel; pixels that needed the second weight class "
+          f"{searched.get('second_class_pixels', 0) / (h * w):.2%}, ties at cost 0 resolved directly "
+          f"{searched.get('zero_set_pixels', 0) / (h * w):.2%}.")
 
 
 def captured_posterior_args(call):
