@@ -107,6 +107,13 @@ def test_soft_matches_brute_force(name, dtype, inverse):
     assert ((d.confidence >= 0) & (d.confidence <= 1)).all()
 
 
+def _random_capture(code, rng, h: int, w: int, *, albedo: float, sigma_s: float, inverse: bool):
+    """`make_capture` of random columns, albedo uniform in [0, albedo) (8-bit)."""
+    cols = rng.integers(0, code.size, (h, w))
+    return make_capture(code, cols, rng=rng, albedo=rng.uniform(0.0, albedo, (h, w)), sigma_s=sigma_s,
+                        inverse=inverse)
+
+
 @pytest.mark.parametrize("name,inverse", [("ecc-22-10", False), ("ecc-22-10", True), ("gray-10", False)])
 def test_fast_paths_equal_scalar_path(name, inverse):
     """The lane-block search and the band scan return exactly what the per-pixel scalar
@@ -115,9 +122,7 @@ def test_fast_paths_equal_scalar_path(name, inverse):
     code = get_code(name)
     rng = np.random.default_rng(11)
     h, w = 6, 3 * LANES + 5
-    cols = rng.integers(0, code.size, (h, w))
-    cap = make_capture(code, cols, rng=rng, albedo=rng.uniform(0.0, 0.4, (h, w)), sigma_s=0.08,
-                       inverse=inverse)
+    cap = _random_capture(code, rng, h, w, albedo=0.4, sigma_s=0.08, inverse=inverse)
     white, black = cap.white.copy(), cap.black.copy()
     dark = rng.random((h, w)) < 0.1
     white[dark] = np.minimum(white, black)[dark] // rng.integers(1, 3, dark.sum()).astype(np.uint8)
@@ -149,9 +154,7 @@ def test_lane_search_resolves_ties_at_cost_zero_exactly(name, inverse):
     code = get_code(name)
     rng = np.random.default_rng(21)
     h, w = 5, 2 * LANES + 9
-    cols = rng.integers(0, code.size, (h, w))
-    cap = make_capture(code, cols, rng=rng, albedo=rng.uniform(0.0, 0.3, (h, w)), sigma_s=0.05,
-                       inverse=inverse)
+    cap = _random_capture(code, rng, h, w, albedo=0.3, sigma_s=0.05, inverse=inverse)
     frames, white, black = cap.frames.copy(), cap.white.copy(), cap.black.copy()
     inv = None if cap.inverse is None else cap.inverse.copy()
     tie = rng.random((code.n, h, w)) < 0.4  # samples that carry no evidence

@@ -234,7 +234,7 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
     ZB = np.zeros(n, np.int64)
     ZL = np.zeros(n, np.int64)
     ZK = np.zeros(3, np.int64)
-    last_col = (1 << n) - 1  # a full-space code's last column
+    last_col = (1 << n) - 1 if full_space else 0  # a full-space code's last column (n <= IDX_BITS)
     npend = 0
     n_zero = 0
     n_second = 0
