@@ -48,6 +48,7 @@ from numba import njit, prange
 
 from ..capture import CodedCapture
 from ..codes import Code
+from ..codes.words import pack_words
 from .posterior import FULL_SCALE_SAMPLE, _ls_levels, _samples, _xtab
 
 #: A right pixel misfits with about this probability (the chi2 tail of the test).
@@ -209,8 +210,7 @@ def packed_symbols(xtab: np.ndarray) -> np.ndarray:
     included); empty (0,) for any other table, which `_misfit_stat` reads as it is."""
     if xtab.shape[1] > 64 or not np.isin(xtab, (0.0, 1.0)).all():
         return np.zeros(0, np.uint64)
-    bits = (xtab == 1.0).astype(np.uint64) << np.arange(xtab.shape[1], dtype=np.uint64)
-    return np.ascontiguousarray(bits.sum(axis=1, dtype=np.uint64))
+    return np.ascontiguousarray(pack_words(xtab == 1.0))
 
 
 _PACKED: dict[tuple[int, bool], tuple[np.ndarray, np.ndarray]] = {}

@@ -88,6 +88,7 @@ import numpy as np
 from numba import get_num_threads, njit, prange
 
 from ..codes import Code
+from ..codes.words import pack_words
 from .kernels import sort_small
 from .level_prior import C_FLOOR, LevelPrior, contrast_edges, cost_at, kernel_args, level_prior
 
@@ -1357,8 +1358,7 @@ def _flips(code: Code) -> TailTables:
     if hit is None:
         hit = no_tail_tables()
         if code.q == 2 and code.is_linear and code.n <= 64:
-            cb = np.asarray(code.codebook, np.uint64)
-            packed = (cb << np.arange(code.n, dtype=np.uint64)).sum(axis=1, dtype=np.uint64)
+            packed = pack_words(code.codebook)
             weights = np.asarray(code.codebook, np.int64).sum(axis=1)
             nonzero = weights[weights > 0]
             if nonzero.size:
