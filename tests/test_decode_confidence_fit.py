@@ -15,13 +15,12 @@ convention.
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import edge.decode.decoder as decoder_module
+from _tools import load_tool
 from _plane_box_sphere import scene as pbs_scene
 from edge.codes import get_code
 from edge.decode import decode
@@ -176,8 +175,7 @@ def test_hard_and_tiny_captures_are_not_tested():
     assert tiny.stats["misfit_noise"] is None and tiny.stats["misfit_dropped"] == 0 and tiny.valid.any()
 
 
-REPO = Path(__file__).resolve().parents[1]
-REAL = Path(os.environ.get("EDGE_SHARED_DIR", REPO / ".." / "shared")) / "data" / "procam-graycode" / "capture_0"
+REAL = load_tool("real_data").REAL_CAPTURE  # beside the repository, or under $EDGE_SHARED_DIR
 
 
 @pytest.mark.skipif(not REAL.is_dir(), reason=f"real capture not found at {REAL}")

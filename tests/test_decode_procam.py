@@ -14,7 +14,6 @@ most 8.5 mm (measured: 72.5 %, 7.73 mm), and >= 62 % of the camera pixels must h
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -23,15 +22,14 @@ import cv2
 import numpy as np
 import pytest
 
+from _tools import load_tool
 from edge.decode.plane import fit_plane
 from edge.decode.procam import estimate_step, read_calibration, reconstruct
 from edge.io.ply import read_ply
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(os.environ.get("EDGE_SHARED_DIR", REPO / ".." / "shared"))
-DATA = SHARED / "data" / "procam-graycode"
-CAPTURE = DATA / "capture_0"
-CALIBRATION = DATA / "calibration_result.xml"
+REAL_DATA = load_tool("real_data")  # beside the repository, or under $EDGE_SHARED_DIR
+DATA, CAPTURE, CALIBRATION = REAL_DATA.PROCAM, REAL_DATA.REAL_CAPTURE, REAL_DATA.CALIBRATION
 # the real data sit beside the repository (or at EDGE_SHARED_DIR); a checkout without them skips
 pytestmark = pytest.mark.skipif(not (CAPTURE.is_dir() and CALIBRATION.is_file()),
                                 reason=f"real capture or calibration not found under {DATA}")

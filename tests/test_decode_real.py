@@ -9,7 +9,6 @@ than 2 from the median of the valid columns in its 7x7 neighbourhood.
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -17,11 +16,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from _tools import load_tool
 from edge.decode import decode, load_opencv_graycode, spatial_outliers
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(os.environ.get("EDGE_SHARED_DIR", REPO / ".." / "shared"))
-CAPTURE = SHARED / "data" / "procam-graycode" / "capture_0"
+CAPTURE = load_tool("real_data").REAL_CAPTURE  # beside the repository, or under $EDGE_SHARED_DIR
 OPENCV_RESOLVED = 0.56
 OPENCV_ERROR_RATE = 0.0001
 

@@ -26,5 +26,6 @@ def test_profile_decode_prints_every_row_and_restores_the_stages(capsys):
     if tool.REAL.is_dir():  # the real capture's tables, where the data is beside the repository
         assert "| whole | search_candidates | confidence_fit |" in out
         assert "The search (path lanes):" in out and "ties at cost 0 resolved directly" in out
+        assert "| pattern only (defaults) |" in out and '| pattern + inverse, validity="error" |' in out
     assert all(getattr(decoder, name) is fn for name, fn in before.items())
     assert posterior._flips is flips and posterior._tail_pass is tail_pass

@@ -34,9 +34,13 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from real_data import REAL_CAPTURE  # noqa: E402
+
 CASES = ("easy", "hard", "hard-band", "service", "real")
-#: The real capture beside the repository (`tools/profile_decode.py`'s).
-REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "procam-graycode" / "capture_0"
+#: The real capture beside the repository (`tools/real_data.py`).
+REAL = REAL_CAPTURE
 
 
 def _digest(*arrays: np.ndarray) -> str:

@@ -33,6 +33,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT))
 
+sys.path.insert(0, str(ROOT / "tools"))
+
 from _plane_box_sphere import render, scene as pbs_scene  # noqa: E402
 from edge.codes import get_code  # noqa: E402
 from edge.commands._args import parse_size  # noqa: E402
@@ -41,6 +43,7 @@ from edge.eval.report import calibration_verdict  # noqa: E402
 from edge.sim import CameraModel, capture_code  # noqa: E402
 from edge.sim.metrics import truth  # noqa: E402
 from edge.sim.scenes import make_scene  # noqa: E402
+from real_data import REAL_CAPTURE  # noqa: E402
 
 CODES = ("gray-10", "ecc-15-10", "ecc-22-10", "ecc-31-10", "ecc-63-10")
 RATIOS = (0.5, 1.0, 2.0)
@@ -166,7 +169,8 @@ def error_kinds(column: np.ndarray, valid: np.ndarray, top: np.ndarray, truth_co
                      int((off & (dist == 1)).sum()), int((off & ((dist > 1) | (top < 0))).sum())], np.int64)
 
 
-REAL = ROOT / ".." / "shared" / "data" / "procam-graycode" / "capture_0"
+#: The real capture beside the repository (`tools/real_data.py`).
+REAL = REAL_CAPTURE
 
 
 def reliability(p: np.ndarray, o: np.ndarray) -> list[tuple[float, float, float, int]]:

@@ -25,7 +25,11 @@ defaults, which with inverse frames run the "confidence" rule: the whole call, t
 goodness-of-fit test (`decoder.confidence_fit`) and its two parts, and the whole call without the
 test (the rule as it was before it), as a ratio; then the search's counters (codeword costs
 evaluated per pixel, the shares of pixels that needed the lane search's second weight class and
-whose ties at cost 0 it resolved directly).
+whose ties at cost 0 it resolved directly).  Then the same capture under the error rule, which
+`decode()` runs by default on pattern frames alone: the stage table's columns for the pattern
+frames alone and for pattern + inverse frames with ``validity="error"``, the time of the tail
+pass inside the posterior (`posterior._tail_pass`), the share of pixels whose tail mass it sums
+(due, and P(not lit) below 1/2) and the share of those that end published.
 """
 
 from __future__ import annotations
@@ -43,6 +47,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_decode import make_hard_input, make_input  # noqa: E402
+from real_data import REAL_CAPTURE  # noqa: E402
 
 import edge.decode.decoder as decoder  # noqa: E402
 import edge.decode.posterior as posterior  # noqa: E402
@@ -58,7 +63,7 @@ STAGES = ("split_levels", "split_capture", "search_candidates", "fit_noise", "po
 CONFIDENCE_STAGES = ("search_candidates", "confidence_fit")
 FIT_PARTS = ("fit_noise", "fit_published")
 #: The real capture (OpenCV Gray-code layout, 1024 x 768 projector) beside the repository.
-REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "procam-graycode" / "capture_0"
+REAL = REAL_CAPTURE
 
 
 @contextlib.contextmanager
@@ -137,6 +142,56 @@ def real_rows(folder: Path, repeats: int) -> None:
           f"evaluated per pixel; pixels that needed the second weight class "
           f"{searched.get('second_class_pixels', 0) / (h * w):.2%}, ties at cost 0 resolved directly "
           f"{searched.get('zero_set_pixels', 0) / (h * w):.2%}.")
+    real_error_rule_rows(cap, repeats)
+
+
+def tail_pass_spy(seconds: dict[str, list[float]], seen: dict[str, np.ndarray]):
+    """A stand-in for `posterior._tail_pass` that appends its wall seconds to
+    ``seconds["tail_pass"]`` and leaves in ``seen["runs"]`` (H, W) bool the pixels it sums the
+    tail of (due, and P(not lit) below 1/2), then calls the original."""
+    original = posterior._tail_pass
+
+    def spy(*a):
+        due, idx, fdr = a[7], a[11], a[12]
+        runs = (due != 0) & (idx >= 0)
+        runs[runs] = fdr[idx[runs]] < 0.5
+        seen["runs"] = runs
+        t0 = time.perf_counter()
+        original(*a)
+        seconds.setdefault("tail_pass", []).append(time.perf_counter() - t0)
+
+    return spy
+
+
+def real_error_rule_rows(cap, repeats: int) -> None:
+    """The real capture under the error rule: pattern frames only (what `decode()` runs by default
+    without inverse frames) and pattern + inverse with ``validity="error"``: the whole call, the
+    stages (medians, ms), the tail pass inside the posterior (`posterior._tail_pass`), the share
+    of pixels whose tail it sums and the share of those that end published."""
+    print("\nReal capture under the error rule (`decode()`'s default without inverse frames); medians in ms, "
+          "tail_pass inside posterior:\n")
+    print("| frames | whole | " + " | ".join(STAGES) + " | of posterior: tail_pass | tail summed on | "
+          "of those published |")
+    print("|---" * (len(STAGES) + 5) + "|")
+    rows = (("pattern only (defaults)", {}), ("pattern + inverse, validity=\"error\"",
+                                               {"inverse": cap.inverse, "validity": "error"}))
+    for label, kwargs in rows:
+        call = lambda: decode(cap.frames, cap.white, cap.black, cap.code, columns=cap.columns, **kwargs)  # noqa: E731
+        seconds: dict[str, list[float]] = {}
+        seen: dict[str, np.ndarray] = {}
+        original = posterior._tail_pass
+        posterior._tail_pass = tail_pass_spy(seconds, seen)
+        try:
+            with stage_timer(seconds):
+                total = median_ms(call, repeats)
+            published = call().valid
+        finally:
+            posterior._tail_pass = original
+        parts = {k: 1e3 * statistics.median(v[1:]) for k, v in seconds.items()}  # v[0]: the warm-up call
+        runs = seen.get("runs", np.zeros(cap.white.shape, bool))  # (none where the code has no tail tables)
+        cells = " | ".join(f"{parts.get(k, 0.0):.1f}" for k in STAGES)
+        print(f"| {label} | {total:.1f} | {cells} | {parts.get('tail_pass', 0.0):.1f} | {runs.mean():.1%} | "
+              f"{published[runs].mean():.1%} |")
 
 
 def captured_posterior_args(call):
