@@ -27,6 +27,7 @@ def _tool(*argv: str, cwd: Path) -> subprocess.CompletedProcess:
     (("eval_nary.py", "--size", "abc"), "eval_nary.py: error: --size expects WIDTHxHEIGHT"),  # int()'s traceback
     (("eval_posterior.py", "--size", "64", "--out", "p"), "eval_posterior.py: error: --size expects"),
     (("eval_per_pixel_limit.py", "--atoms", "0", "--out", "l.md"), "eval_per_pixel_limit.py: error: --atoms must be"),
+    (("eval_sgm_error.py", "--ambient", "0", "--out", "s"), "eval_sgm_error.py: error: --ambient: expected positive"),
     (("eval_room.py", "--max-devices", "0", "--out", "r"), "eval_room.py: error: --max-devices must be >= 2"),  # IndexError
     (("eval_edc.py", "--width", "4", "--height", "4", "--out", "e"), "eval_edc.py: error: camera 4x4 is too small"),
     (("eval_sweep.py", "--experiments", "bogus", "--out", "s"), "eval_sweep.py: error: unknown experiment 'bogus'"),
