@@ -15,7 +15,8 @@ the two; then the published pixels binned by P(wrong) (below 1e-4, 1e-4 to 1e-3,
 errors seen against the count the bin's predictions expect (their sum), with the verdict on
 "within 2x" of `edge.eval.report.calibration_verdict` (within; consistent at 99 % on the count;
 off); and of sgm's wrong published pixels the share whose true column (within one row) was none
-of its candidate states.  Writes README.md to --out.
+of its candidate states, and the median of soft's P(wrong) there (what the pixel's own samples
+say).  Writes README.md to --out.
 """
 
 from __future__ import annotations
@@ -82,17 +83,19 @@ def main(argv: list[str] | None = None) -> int:
 
     say("Published pixels (P(wrong) < max_error = 0.01) of the lit ones; wrong: more than one row off.\n")
     say("| generator | ambient | code | method | published | wrong / predicted | ratio | "
-        "P < 1e-4: seen / expected (pixels) | 1e-4 to 1e-3 | 1e-3 to 1e-2 | sgm's wrong: truth not a candidate |")
-    say("|---" * 11 + "|")
+        "P < 1e-4: seen / expected (pixels) | 1e-4 to 1e-3 | 1e-3 to 1e-2 | sgm's wrong: truth not a candidate | "
+        "sgm's wrong: soft's P(wrong), median |")
+    say("|---" * 12 + "|")
     for gen_name, gen in (("edge.sim", sim_capture), ("plane-box-sphere", pbs_capture)):
         for ratio in args.ambient:
             for name in CODES:
                 code = get_code(name)
                 caps = [gen(code, ratio, seed, size) for seed in args.seeds]
                 lit_total = sum(int(c[5].sum()) for c in caps)
+                soft_error = [decode(f, w, b, code, bit_depth=bits).error for f, w, b, bits, _, _ in caps]
                 for method in METHODS:
-                    ps, ws, missed = [], [], []
-                    for f, w, b, bits, col, lit in caps:
+                    ps, ws, missed, own = [], [], [], []
+                    for (f, w, b, bits, col, lit), soft in zip(caps, soft_error):
                         d = decode(f, w, b, code, bit_depth=bits, method=method)
                         p, wrong = published_errors(d.column, d.valid, d.error, col, lit)
                         ps.append(p)
@@ -100,13 +103,17 @@ def main(argv: list[str] | None = None) -> int:
                         bad = d.valid & lit & (np.abs(d.column.astype(np.int64) - col) > 1)
                         near = (np.abs(d.candidates.astype(np.int64) - col[..., None]) <= 1).any(axis=-1)
                         missed.append(~near[bad])
+                        own.append(soft[bad])
                     p, wrong, miss = np.concatenate(ps), np.concatenate(ws), np.concatenate(missed)
+                    own_error = np.concatenate(own)
                     seen, predicted = float(wrong.mean()) if wrong.size else 0.0, float(p.mean()) if p.size else 0.0
                     ratio_cell = f"{seen / predicted:.1f}x" if predicted > 0 else "-"
-                    not_cand = f"{miss.mean():.0%} of {miss.size}" if method == "sgm" and miss.size else "-"
+                    sgm_rows = method == "sgm" and miss.size
+                    not_cand = f"{miss.mean():.0%} of {miss.size}" if sgm_rows else "-"
+                    own_cell = f"{np.median(own_error):.2g}" if sgm_rows else "-"
                     say(f"| {gen_name} | {ratio:g} | {name} | {method} | {p.size / max(lit_total, 1):.3f} | "
                         f"{seen:.4f} / {predicted:.5f} | {ratio_cell} | " + " | ".join(bins(p, wrong))
-                        + f" | {not_cand} |")
+                        + f" | {not_cand} | {own_cell} |")
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "README.md").write_text("# How far method=\"sgm\"'s P(wrong) can be trusted\n\n" + "\n".join(lines) + "\n")
     print(f"wrote {args.out / 'README.md'}")
