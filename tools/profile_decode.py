@@ -152,10 +152,7 @@ def tail_pass_spy(seconds: dict[str, list[float]], seen: dict[str, np.ndarray]):
     original = posterior._tail_pass
 
     def spy(*a):
-        due, idx, fdr = a[7], a[11], a[12]
-        runs = (due != 0) & (idx >= 0)
-        runs[runs] = fdr[idx[runs]] < 0.5
-        seen["runs"] = runs
+        seen["runs"] = (a[7] != 0) & (not_lit_of(a[11], a[12]) < 0.5)  # due, and P(not lit) below 1/2
         t0 = time.perf_counter()
         original(*a)
         seconds.setdefault("tail_pass", []).append(time.perf_counter() - t0)
@@ -227,8 +224,13 @@ def due_and_not_lit(args, kwargs) -> tuple[np.ndarray, np.ndarray]:
         posterior.posterior(*args, **kwargs)
     finally:
         posterior._tail_pass = original
-    idx = seen["idx"]
-    return seen["due"] != 0, np.where(idx >= 0, seen["fdr"][np.maximum(idx, 0)], 1.0)
+    return seen["due"] != 0, not_lit_of(seen["idx"], seen["fdr"])
+
+
+def not_lit_of(idx: np.ndarray, fdr: np.ndarray) -> np.ndarray:
+    """(H, W) float64 P(not lit) from `posterior._tail_pass`'s arguments: the not-lit lookup's
+    bin per pixel (idx, -1 where the gain is not finite) and its table (fdr); 1 where idx < 0."""
+    return np.where(idx >= 0, fdr[np.maximum(idx, 0)], 1.0)
 
 
 def tail_rows(code, cap, repeats: int) -> None:
