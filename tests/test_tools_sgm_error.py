@@ -37,6 +37,16 @@ def test_bins_count_seen_against_the_sum_of_predictions():
     assert tool.bins(np.zeros(0), np.zeros(0, bool)) == ["0 / 0.00 (0): -"] * 3
 
 
+def test_from_added_state_is_the_propagated_column_and_not_one_of_the_top_three():
+    tool = _tool()
+    column = np.array([[7, 7, 7, -1]], np.int32)
+    top3 = np.array([[[1, 2, 3], [7, 2, 3], [1, 2, 3], [1, 2, 3]]], np.int32)
+    added = np.array([[7, 7, 8, -1]], np.int32)
+    # (0,0): the added 7 is published and not in its top three; (0,1): 7 is its own best; (0,2):
+    # the added state is 8, not the published 7; (0,3): nothing added, nothing published
+    assert tool.from_added_state(column, top3, added).tolist() == [[True, False, False, False]]
+
+
 def test_a_small_run_writes_every_row(tmp_path, capsys):
     tool = _tool()
     assert tool.main(["--size", "64x48", "--seeds", "0", "--ambient", "2", "--out", str(tmp_path)]) == 0
@@ -46,6 +56,6 @@ def test_a_small_run_writes_every_row(tmp_path, capsys):
     for row in rows:
         cells = [c.strip() for c in row.strip("|").split("|")]
         assert cells[3] in ("soft", "sgm") and 0.0 <= float(cells[4]) <= 1.0
-        if cells[3] == "soft":  # the last two columns are sgm's
-            assert cells[-1] == cells[-2] == "-"
+        if cells[3] == "soft":  # the last three columns are sgm's
+            assert cells[-1] == cells[-2] == cells[-3] == "-"
     assert "Command: `python tools/eval_sgm_error.py --size 64x48 --seeds 0 --ambient 2`" in text
