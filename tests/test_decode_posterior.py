@@ -247,6 +247,31 @@ def test_coding_gain_with_defaults_independent_renderer(ratio, bits):
     assert max(g_far, e_far) <= 0.02
 
 
+@pytest.mark.parametrize("gen, ratio", [(_sim, 0.25), (_sim, 2.0), (_pbs, 0.25), (_pbs, 2.0)],
+                         ids=["edge.sim-0.25", "edge.sim-2", "plane-box-sphere-0.25", "plane-box-sphere-2"])
+@pytest.mark.parametrize("name", ["ecc-22-10", "ecc-63-10", "gray-10"])
+def test_soft_search_margin_leaves_every_output_as_the_exact_search_does(monkeypatch, gen, ratio, name):
+    """`decode()`'s soft search locates the second and third candidates only within the
+    posterior's skip margin (`SKIP_MARGIN`): column, valid, error, confidence and distances equal
+    those of a decode whose search returns the exact top three, and a candidate differs only
+    where the exact decode's distance is inf (not rescored) and the margin's is -1."""
+    import edge.decode.decoder as decoder
+
+    code = get_code(name)
+    f, w, b, bd, _, _ = gen(code, ratio)
+    fast = decode(f, w, b, code, bit_depth=bd)
+    search = decoder.search_candidates
+    monkeypatch.setattr(decoder, "search_candidates", lambda *a, **k: search(*a, **dict(k, margin=None)))
+    exact = decode(f, w, b, code, bit_depth=bd)
+    for field in ("column", "valid", "error", "confidence", "distances"):
+        np.testing.assert_array_equal(getattr(fast, field), getattr(exact, field), err_msg=field)
+    moved = fast.candidates != exact.candidates
+    assert (fast.candidates[moved] == -1).all() and np.isinf(exact.distances[moved]).all()
+    assert exact.stats["margin_pixels"] == 0
+    if gen is _sim and ratio < 1:  # bright enough that the margin finishes pixels and skips blocks
+        assert fast.stats["margin_pixels"] > 0 and fast.stats["margin_blocks"] > 0
+
+
 def test_spatial_methods_correct_instead_of_discard():
     f, w, b, bd, col, lit = _sim(ECC, 1.0)
     err = {}

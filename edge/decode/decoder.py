@@ -69,7 +69,7 @@ from .backends import get as get_backend
 from .inputs import NoPatternContrast, validate
 from .levels import estimate_levels
 from .misfit import check_fit, fit_published, fits
-from .posterior import Noise, fit_noise, normalised32, posterior, split_levels
+from .posterior import SKIP_MARGIN, Noise, fit_noise, normalised32, posterior, split_levels
 from .propagate import propagate
 from .search import METRICS, band_args, check_call, search_candidates
 from .settings import DEFAULT_SETTINGS, METHODS, DecodeSettings
@@ -99,7 +99,9 @@ class Decoded:
         "hamming-search"), ``seconds``, and for the soft paths ``evaluated`` (codeword costs
         computed, summed over pixels) and ``brute_pixels``; the "lanes" path adds
         ``second_class_pixels`` / ``second_class_blocks`` / ``blocks`` / ``pending_blocks`` /
-        ``zero_set_pixels`` (a full-space code's ties at cost 0 resolved directly); the
+        ``zero_set_pixels`` (a full-space code's ties at cost 0 resolved directly) and, searched
+        with a margin (the "error" rule's soft method), ``margin_pixels`` / ``margin_blocks``
+        (pixels finished by it, blocks that skipped their lightest class); the
         "band" path adds ``wide_key_pixels`` (pixels whose costs exceeded the 32-bit keys and were
         redone with 64-bit keys, see `kernels.soft_band_fold`).  Under the "error" rule it adds
         ``rule``, ``levels``, ``level_source`` ("split", "calibration" or "refit",
@@ -113,8 +115,9 @@ class Decoded:
         candidate's (`edge.decode.spatial.published_error`: the pixel's own evidence, so it may be
         above ``max_error`` where neighbours' support published the column).  Under
         that rule candidates / distances are the posterior's (re-ordered by it, distances the
-        negative log-likelihoods plus the capture's level prior, `edge.decode.level_prior`) and
-        confidence is ``(d2 - d1) / d2`` of their Mahalanobis parts; with method "sgm", candidates are re-ordered by aggregated cost and error is the
+        negative log-likelihoods plus the capture's level prior, `edge.decode.level_prior`; with
+        method "soft" a second or third more than `posterior.SKIP_MARGIN` behind the best is not
+        searched for and is -1, distance inf) and confidence is ``(d2 - d1) / d2`` of their Mahalanobis parts; with method "sgm", candidates are re-ordered by aggregated cost and error is the
         regularised one (`edge.decode.sgm`).
     """
 
@@ -293,7 +296,10 @@ def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, nc
         s = s.with_noise(first_noise.a, first_noise.beta)
     else:
         searched = stack
-    found = search_candidates(searched, code, s, columns=ncols, band=band, stripe=stripe)
+    # soft: the posterior rescores only candidates within SKIP_MARGIN of the best, so the search
+    # need not locate the others; the spatial methods read every candidate, so they get the top 3
+    margin = SKIP_MARGIN if s.method == "soft" else None
+    found = search_candidates(searched, code, s, columns=ncols, band=band, stripe=stripe, margin=margin)
     best = found.candidates[..., 0]
     noise = fit_noise(stack.frames, stack.white, stack.black, float(scale), code, best,
                       prior=(s.sigma_r, s.sigma_s), inverse=stack.inverse)

@@ -89,7 +89,7 @@ from numba import get_num_threads, njit, prange
 
 from ..codes import Code
 from ..codes.words import pack_words
-from .kernels import sort_small
+from .kernels import BEYOND, sort_small
 from .level_prior import C_FLOOR, LevelPrior, contrast_edges, cost_at, kernel_args, level_prior
 
 #: Smallest on - off contrast (normalised units) the split levels keep, so that the search
@@ -103,7 +103,8 @@ FULL_SCALE_SAMPLE = 1.0 - 1e-6
 MIN_FIT_PIXELS = 500
 #: Competitors the search puts this far (in -2 log-likelihood) behind the best are not rescored:
 #: their posterior odds, about exp(-SKIP_MARGIN / 2), are far below any error target; they keep
-#: their place after the scored candidates with distance inf.
+#: their place after the scored candidates with distance inf.  `decode()`'s soft search does not
+#: locate them (its margin, `edge.decode.kernels.soft_lanes`): there they come back as row -1.
 SKIP_MARGIN = 60.0
 #: Lloyd iterations of `split_levels` at most (it stops earlier once the split is stable).
 SPLIT_ITERATIONS = 4
@@ -893,6 +894,10 @@ def _posterior(frames, white, black, scale, xtab, cand, searched, a, beta, flips
                 plain = np.inf  # the least L_k without the prior: the not-lit test's gain is flat - plain
                 for k in range(3):
                     row = cand[yy, xx, k]
+                    if row == BEYOND:  # beyond the skip margin and not located: not rescored, as below
+                        rest[unscored] = -1
+                        unscored += 1
+                        continue
                     if row < 0:
                         continue
                     if not scored[k, l]:
@@ -1384,7 +1389,9 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
 
     frames (n, H, W), white / black (H, W), inverse (n, H, W) or None: the raw capture (``scale``
     to normalised units; inverse frames are n more samples, of symbol 1 - x); candidates: (H, W,
-    3) int32 rows of the search; noise: `fit_noise`'s model; choices: N, the number of columns a
+    3) int32 rows of the search (-1 none; `kernels.BEYOND`: a codeword more than `SKIP_MARGIN`
+    behind the best that a search with that margin did not locate, treated as a candidate not
+    rescored and returned as -1); noise: `fit_noise`'s model; choices: N, the number of columns a
     pixel could have decoded to (codebook rows in use, or the rows of the disparity band), >= 1;
     distances: (H, W, 3) the search's distances (-2 log-likelihood), or None (every candidate is
     rescored): candidates more than `SKIP_MARGIN` behind the best are not rescored.

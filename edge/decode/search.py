@@ -76,13 +76,17 @@ def band_args(min_disparity: float | None, max_disparity: float | None) -> tuple
 
 
 def search_candidates(stack: CodedCapture, code: Code, settings: DecodeSettings, *, columns: int,
-                      band: tuple[bool, int, int], stripe: int) -> Candidates:
+                      band: tuple[bool, int, int], stripe: int, margin: float | None = None) -> Candidates:
     """Exact top-3 search of `stack` on ``settings.backend``: the hard-decision search for
-    ``method="hard"``, the soft search under ``settings.metric`` otherwise."""
+    ``method="hard"``, the soft search under ``settings.metric`` otherwise.  margin (soft search,
+    CPU backend; None: none): the second and third are located only within ``margin`` of the
+    best (`edge.decode.backends.cpu.search`; a slot beyond it may hold row -2)."""
     backend = get_backend(settings.backend)
     if settings.method == "hard":
         cand, dist, conf, st = backend.hard(stack, code, columns=columns, band=band, stripe=stripe)
     else:
+        extra = {} if margin is None else {"margin": margin}
         cand, dist, conf, st = backend.search(stack, code, metric=METRICS[settings.metric], sigma_r=settings.sigma_r,
-                                              sigma_s=settings.sigma_s, columns=columns, band=band, stripe=stripe)
+                                              sigma_s=settings.sigma_s, columns=columns, band=band, stripe=stripe,
+                                              **extra)
     return Candidates(candidates=cand, distances=dist, confidence=conf, stats=st)

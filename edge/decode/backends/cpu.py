@@ -5,6 +5,7 @@ Implements the backend seam of `edge.decode.backends` (``search``, ``hard``).
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -20,6 +21,10 @@ from . import Q_SCALE
 #: crossover measured with tools/bench_decode.py's input (ecc-22-10, 600 x 700): scan 135 / 203 /
 #: 271 ms CPU for 64 / 128 / 192 columns, lane search 272 / 224 / 217 ms.
 BAND_BRUTE_MAX = 160
+#: The lane search's margin in quantised costs is ``ceil((margin + MARGIN_SLACK) * q_scale)``
+#: (distance units): the slack keeps the float32 distances of codewords beyond it more than
+#: ``margin`` apart from the best's (`kernels.lanes._beyond` checks that too).
+MARGIN_SLACK = 1.0
 
 
 def _band_columns(band: tuple[bool, int, int], stripe: int) -> int:
@@ -39,8 +44,15 @@ def search(
     band: tuple[bool, int, int],
     stripe: int,
     path: str | None = None,
+    margin: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
     """Exact top-3 search: (candidates (H,W,3) i32, distances (H,W,3) f32, confidence (H,W) f32, stats).
+
+    margin (distance units, > 0; None: exact top-3): the second and third candidates are only
+    located within ``margin`` of the best (the "lanes" path, `kernels.soft_lanes`; the other paths
+    return exact top-3, which meets the same contract): a slot beyond it may hold row
+    `kernels.BEYOND` (-2, distance inf), a codeword at least ``margin`` behind the best in
+    float32 distances.  The best candidate, and every slot within the margin, are exact.
 
     path (binary codes; default chosen from the code and band): "band" (a band of at most
     `BAND_BRUTE_MAX` columns: folded Walsh-Hadamard blocks, `kernels.soft_band_fold`, for
@@ -98,12 +110,15 @@ def search(
         kernels.soft_band(*pixels, model, tb.scan_tables, bnd, cand, dist, conf, stats)
         st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
     elif path == "lanes":
-        stats = np.zeros((h, 6), np.int64)
-        kernels.soft_lanes(*pixels, model, tb.lane_tables, bnd, cand, dist, conf, stats)
+        stats = np.zeros((h, 8), np.int64)
+        margin_q = -1 if margin is None else int(math.ceil((float(margin) + MARGIN_SLACK) * q_scale))
+        kernels.soft_lanes(*pixels, model, tb.lane_tables, bnd, np.int64(margin_q),
+                           np.float64(np.inf if margin is None else margin), cand, dist, conf, stats)
         tot = stats.sum(axis=0)
         st = {"path": path, "brute_pixels": 0, "evaluated": int(tot[1]),
               "second_class_pixels": int(tot[0]), "second_class_blocks": int(tot[2]),
-              "blocks": int(tot[3]), "pending_blocks": int(tot[4]), "zero_set_pixels": int(tot[5])}
+              "blocks": int(tot[3]), "pending_blocks": int(tot[4]), "zero_set_pixels": int(tot[5]),
+              "margin_pixels": int(tot[6]), "margin_blocks": int(tot[7])}
     elif path == "scalar":
         stats = np.zeros((h, 2), np.int64)
         kernels.soft_binary(*pixels, model, tb.scalar_tables, bnd, BAND_BRUTE_MAX, cand, dist, conf, stats)

@@ -12,6 +12,7 @@ float32, ``out_conf`` (H, W) float32 and, for the soft paths, ``out_stats`` (H, 
 * `scalar`: `soft_binary`, per-pixel branch-and-bound, any binary code (`ScalarTables`);
 * `nary`: `soft_nary`, brute force for q-ary codes (`NaryTables`);
 * `lanes`: `soft_lanes`, weight-class search 64 pixels at a time, column-linear codes (`LaneTables`);
+  with a margin it locates the second and third only within it (`BEYOND` marks one beyond);
 * `band_scan`: `soft_band`, scan of a disparity band, any binary code (`ScanTables`);
 * `band_fold`: `soft_band_fold`, folded Walsh-Hadamard blocks over a band, column-linear (`FoldTables`);
 * `hard`: `hard_lean`, hard decisions + coset-leader table, binary linear codes (`HardTables`).
@@ -30,10 +31,10 @@ from .hard import hard_lean
 from .lanes import soft_lanes
 from .nary import soft_nary
 from .scalar import soft_binary
-from .top3 import IDX_BITS, IDX_MASK, NO_KEY, Band, sort_small
+from .top3 import BEYOND, IDX_BITS, IDX_MASK, NO_KEY, Band, sort_small
 
 __all__ = [
-    "BAND_NET", "IDX_BITS", "IDX_MASK", "LANES", "METRIC_HARD", "METRIC_ML", "METRIC_NORMALIZED", "NO_KEY", "Y_CLIP",
+    "BAND_NET", "BEYOND", "IDX_BITS", "IDX_MASK", "LANES", "METRIC_HARD", "METRIC_ML", "METRIC_NORMALIZED", "NO_KEY", "Y_CLIP",
     "Band", "CostModel", "hard_lean", "log_levels", "soft_band", "soft_band_fold", "soft_binary", "soft_lanes",
     "soft_nary", "sort_small",
 ]

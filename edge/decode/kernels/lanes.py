@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit, prange
 
 from .cost import LANES, _block_llr
-from .top3 import IDX_BITS, NO_KEY, _write, _write_none
+from .top3 import BEYOND_KEY, IDX_BITS, NO_KEY, _write, _write_none
 
 
 #: Larger than any cost bound (an empty weight class).
@@ -183,8 +183,49 @@ def _zero_set_top3(V, l, n, colref, col_bit, basis, leads, keys):
     return True
 
 
+@njit(cache=True, inline="always")
+def _beyond(k1, bound, margin_q, margin, dmin, q_scale):
+    """Whether every codeword of cost >= ``bound`` lies beyond the margin of the best key k1: its
+    cost at least ``margin_q`` more (quantised units, ``margin_q >= 0``), and its distance's
+    float32 (`_write`'s ``float32(dmin + cost / q_scale)``, monotone in the cost) more than
+    ``margin`` above the best's in float32 arithmetic, as a reader of the distances computes it
+    (`edge.decode.posterior`'s skip test).  False where there is no best or no margin (< 0)."""
+    if margin_q < 0 or k1 == NO_KEY:
+        return False
+    c1 = k1 >> IDX_BITS
+    if bound - c1 < margin_q:
+        return False
+    d1 = np.float32(dmin + c1 / q_scale)
+    db = np.float32(dmin + (c1 + margin_q) / q_scale)
+    return db - d1 > margin
+
+
+@njit(cache=True, inline="always")
+def _located(key, bound):
+    """A top-3 key as `_write` takes it where codewords of cost >= ``bound`` were not evaluated:
+    the key where its cost is below the bound (then it is exact), else `BEYOND_KEY` (NO_KEY kept
+    as it is: `_beyond_keys` fills the slots a lane's columns can hold)."""
+    if key == NO_KEY or (key >> IDX_BITS) < bound:
+        return key
+    return BEYOND_KEY
+
+
+@njit(cache=True, inline="always")
+def _beyond_keys(k1, k2, k3, bound, lo, hi):
+    """(k2, k3) of a lane finished by the margin: `_located`, and an empty slot that a column of
+    the lane's range [lo, hi] would fill (the range holds 2 or 3 or more columns) becomes
+    `BEYOND_KEY`: such a codeword exists and costs at least ``bound``."""
+    b2 = _located(k2, bound)
+    b3 = _located(k3, bound)
+    if b2 == NO_KEY and hi - lo >= 1:
+        b2 = BEYOND_KEY
+    if b3 == NO_KEY and hi - lo >= 2:
+        b3 = BEYOND_KEY
+    return b2, b3
+
+
 @njit(cache=True)
-def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables, band,
+def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables, band, margin_q, margin,
                out_col, out_dist, out_conf, out_stats):
     """Row yy of `soft_lanes` (a plain function: keeps the parallel kernel small to compile)."""
     metric, sr2, ss2, q_scale, ltab = model.metric, model.sr2, model.ss2, model.q_scale, model.ltab
@@ -242,6 +283,8 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
     blocks_second = 0
     blocks = 0
     pend_blocks = 0
+    n_margin = 0
+    blocks_margin = 0
     for x0 in range(0, width, L):
         blocks += 1
         nact = _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2,
@@ -288,11 +331,22 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
             k2[l] = NO_KEY
             k3[l] = NO_KEY
         evaluated += nact
+        cidx = 0  # the class bound of the codewords not evaluated
         if nclass > 0:
-            evaluated += nact * _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, L, 0,
-                                             1, nclass, cls_weight, cls_start, cls_pstart,
-                                             dpos, dcol)
             _class_bounds(V, SV, run, lb, n, cls_weight, nclass)
+            # with a margin: the lightest class is skipped where every lane's best is already
+            # the margin ahead of all other codewords
+            skip = margin_q >= 0
+            for l in range(L):
+                if skip and active[l] and x0 + l < width:
+                    skip = _beyond(k1[l], base[l] + lb[0, l], margin_q, margin, dmin[l], q_scale)
+            if skip:
+                blocks_margin += 1
+            else:
+                evaluated += nact * _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, L, 0,
+                                                 1, nclass, cls_weight, cls_start, cls_pstart,
+                                                 dpos, dcol)
+                cidx = 1
         else:
             for l in range(L):
                 lb[0, l] = _NO_BOUND
@@ -304,10 +358,17 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
             if not active[l]:
                 _write_none(out_col, out_dist, out_conf, yy, xx)
                 continue
-            cidx = 1 if nclass > 0 else 0
             if (k3[l] >> IDX_BITS) < base[l] + lb[cidx, l]:
                 _write(out_col, out_dist, out_conf, yy, xx, k1[l], k2[l], k3[l], dmin[l], q_scale)
                 continue
+            bound = base[l] + lb[cidx, l]
+            if _beyond(k1[l], bound, margin_q, margin, dmin[l], q_scale):
+                b2, b3 = _beyond_keys(k1[l], k2[l], k3[l], bound, lo[l], hi[l])
+                _write(out_col, out_dist, out_conf, yy, xx, k1[l], b2, b3, dmin[l], q_scale, margin)
+                n_margin += 1
+                continue
+            if cidx == 0:  # (not reached: a skipped class means every lane is beyond the margin)
+                raise AssertionError("lanes: a lane of a block that skipped its first class is not finished")
             # a full-space code, every column a candidate, two or more zero costs: the top three
             # are the tied words' least columns (`_zero_set_top3`), no class search needed
             if (full_space and lo[l] <= 0 and hi[l] >= last_col
@@ -363,10 +424,12 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
     out_stats[yy, 3] = blocks
     out_stats[yy, 4] = pend_blocks
     out_stats[yy, 5] = n_zero
+    out_stats[yy, 6] = n_margin
+    out_stats[yy, 7] = blocks_margin
 
 
 @njit(cache=True, parallel=True)
-def soft_lanes(frames, inverse, has_inv, white, black, scale, model, tables, band,
+def soft_lanes(frames, inverse, has_inv, white, black, scale, model, tables, band, margin_q, margin,
                out_col, out_dist, out_conf, out_stats):
     """Exact top-3 soft decoding of a column-linear binary code, LANES pixels at a time.
 
@@ -388,11 +451,22 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, model, tables, ban
     more zero V after stage 1 (ties at cost 0, which the bounds cannot break: dark pixels whose
     pattern and inverse samples are equal) takes its top three from `_zero_set_top3` instead of
     the pending block.
-    out_stats (H, 6) int64 per row: pixels that needed the second class, codeword evaluations,
+    A margin (``margin_q >= 0`` quantised cost units, ``margin`` the same in distance units,
+    ``margin_q > margin * q_scale``; ``margin_q = -1``: none, exact top-3): a lane is also
+    finished where every codeword not evaluated is beyond the margin of its best (`_beyond`: the
+    bound at least margin_q above the best cost and, in float32 distances, more than ``margin``
+    above it).  Its best is then exact, and so is every other slot whose cost is below the bound;
+    a slot that is not holds `BEYOND_KEY` (row `BEYOND` = -2, distance inf: a codeword at least
+    the margin behind, not located).  A block whose every lane is beyond the margin after
+    D = 0 skips the lightest class.  This is what a reader that ignores every candidate more than
+    ``margin`` behind the best needs (the error rule's posterior, `SKIP_MARGIN`), and in a
+    high-SNR capture nearly every block skips its lightest class.  Slots within the margin, and
+    the pending block's lanes, are exact top-3 as without a margin.
+    out_stats (H, 8) int64 per row: pixels that needed the second class, codeword evaluations,
     stage-1 blocks with at least one such pixel, stage-1 blocks, pending blocks, pixels resolved
-    by `_zero_set_top3`.
+    by `_zero_set_top3`, pixels finished by the margin, blocks that skipped the lightest class.
     """
     height = frames.shape[1]
     for yy in prange(height):
-        _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables, band,
+        _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables, band, margin_q, margin,
                    out_col, out_dist, out_conf, out_stats)

@@ -34,6 +34,11 @@ class Band(NamedTuple):
 IDX_BITS = 16
 IDX_MASK = (1 << IDX_BITS) - 1
 NO_KEY = np.int64(1) << np.int64(62)
+#: A slot of a search with a margin (`edge.decode.kernels.lanes`) that holds a codeword at least
+#: the margin behind the best, not located: `_write` gives it the row `BEYOND` and distance inf.
+BEYOND_KEY = NO_KEY - np.int64(1)
+#: The candidate row of a `BEYOND_KEY` slot (-1 is an empty slot).
+BEYOND = -2
 
 
 @njit(cache=True, inline="always")
@@ -87,18 +92,27 @@ def sort_small(a, m):
 
 
 @njit(cache=True, inline="always")
-def _write(out_col, out_dist, out_conf, yy, xx, k1, k2, k3, dmin, q_scale):
+def _write(out_col, out_dist, out_conf, yy, xx, k1, k2, k3, dmin, q_scale, margin=np.inf):
+    """One pixel's outputs from its three keys: rows (-1 empty, `BEYOND` not located), distances
+    ``float32(dmin + cost / q_scale)`` (inf for both), confidence ``(d2 - d1) / d2`` (0 without a
+    second; with k2 = `BEYOND_KEY` its lower bound ``margin / (d1 + margin)``, d2 >= d1 + margin)."""
     keys = (k1, k2, k3)
     for j in range(3):
         kk = keys[j]
         if kk == NO_KEY:
             out_col[yy, xx, j] = -1
             out_dist[yy, xx, j] = np.inf
+        elif kk == BEYOND_KEY:
+            out_col[yy, xx, j] = BEYOND
+            out_dist[yy, xx, j] = np.inf
         else:
             out_col[yy, xx, j] = np.int32(kk & IDX_MASK)
             out_dist[yy, xx, j] = np.float32(dmin + (kk >> IDX_BITS) / q_scale)
     if k2 == NO_KEY:
         out_conf[yy, xx] = 0.0
+    elif k2 == BEYOND_KEY:
+        d1 = dmin + (k1 >> IDX_BITS) / q_scale
+        out_conf[yy, xx] = np.float32(margin / (d1 + margin)) if d1 + margin > 0 else np.float32(0.0)
     else:
         d1 = dmin + (k1 >> IDX_BITS) / q_scale
         d2 = dmin + (k2 >> IDX_BITS) / q_scale
