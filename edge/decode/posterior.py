@@ -713,68 +713,68 @@ def _lane_samples(frames, white, black, scale, yy, x0, R):
 
 
 @njit(cache=True, inline="always")
-def _lane_nll(R, sr, X, rows, n, xtab, a, beta, S, out_l, out_q, out_c):
-    """`_nll` of codebook row ``rows[l]`` (>= 0) of every lane of a binary code (symbols 0 / 1),
-    lane-parallel: each lane's sums run over the samples in `_fit` / `_nll`'s order with the same
-    operations, so out_l / out_q / out_c (LANES,) are theirs bit for bit.  sr (LANES,): the sum of
-    each lane's m samples (`_fit`'s ``sr``); scratch X (n, LANES), S (9, LANES) float64."""
+def _lane_nll(R, sr, W, rows, k, n, words, a, beta, T, out_l, out_q, out_c, out_b):
+    """`_nll` of codebook row ``rows[k, l]`` (>= 0) of every lane of a binary code (symbols 0 /
+    1), lane-parallel, into row k of out_l / out_q / out_c / out_b (3, LANES) (L, Mahalanobis
+    part, contrast c, off level b).  The symbols are read from the packed words (`_words`: bit i
+    of ``words[row, i // 64]`` = symbol i), which vectorises where a gather of `_xtab`'s rows does
+    not.  Each lane's sums run over the samples in `_fit` / `_nll`'s order with the same
+    operations (``x * x == x`` for a 0 / 1 symbol, so `_fit`'s sum of x**2 is its sum of x), so
+    the values are theirs bit for bit.  sr (LANES,): the sum of each lane's m samples (`_fit`'s
+    ``sr``); scratch W (2, LANES) uint64, T (8, LANES) float64."""
     m = n + 2
-    L = R.shape[1]
+    L = LANES
     for l in range(L):
-        r = rows[l]
-        for i in range(n):
-            X[i, l] = xtab[r, i]
-    sx = S[0]
-    sxx = S[1]
-    sxr = S[2]
+        r = rows[k, l]
+        W[0, l] = words[r, 0]
+        W[1, l] = words[r, 1]
     for l in range(L):
-        sx[l] = 1.0
-        sxx[l] = 1.0
-        sxr[l] = R[n, l]
+        T[0, l] = 1.0  # sum of x (white: x = 1)
+        T[1, l] = R[n, l]  # sum of x r
     for i in range(n):
+        wi = i >> 6
+        sh = np.uint64(i & 63)
         for l in range(L):
-            x = X[i, l]
-            sx[l] += x
-            sxx[l] += x * x
-            sxr[l] += x * R[i, l]
-    bb = S[3]
-    b1 = S[4]
-    r0 = S[5]
-    r1 = S[6]
-    l0 = S[7]
-    l1 = S[8]
+            x = np.float64((W[wi, l] >> sh) & np.uint64(1))
+            T[0, l] += x
+            T[1, l] += x * R[i, l]
     for l in range(L):
-        b, c = _ls_levels(m, sx[l], sxx[l], sxr[l], sr[l])
-        bb[l] = b
-        b1[l] = b + c
-        out_c[l] = c
+        b, c = _ls_levels(m, T[0, l], T[0, l], T[1, l], sr[l])
+        T[2, l] = b
+        T[3, l] = b + c
+        out_c[k, l] = c
+        out_b[k, l] = b
     for l in range(L):
-        v0 = a + beta * (bb[l] if bb[l] > 0.0 else 0.0)
-        v1 = a + beta * (b1[l] if b1[l] > 0.0 else 0.0)
-        l0[l] = np.log(v0)
-        l1[l] = np.log(v1)
-        r0[l] = 1.0 / v0
-        r1[l] = 1.0 / v1
-        out_l[l] = 0.0
-        out_q[l] = 0.0
+        bb = T[2, l]
+        b1 = T[3, l]
+        v0 = a + beta * (bb if bb > 0.0 else 0.0)
+        v1 = a + beta * (b1 if b1 > 0.0 else 0.0)
+        T[4, l] = np.log(v0)
+        T[5, l] = np.log(v1)
+        T[6, l] = 1.0 / v0
+        T[7, l] = 1.0 / v1
+        out_l[k, l] = 0.0
+        out_q[k, l] = 0.0
     for i in range(n):
+        wi = i >> 6
+        sh = np.uint64(i & 63)
         for l in range(L):
             # both operands loaded before the select: a branch-free loop that vectorises
-            one = X[i, l] != 0.0
-            mu0, mu1, w0, w1, g0, g1 = bb[l], b1[l], r0[l], r1[l], l0[l], l1[l]
+            one = ((W[wi, l] >> sh) & np.uint64(1)) != np.uint64(0)
+            mu0, mu1, w0, w1, g0, g1 = T[2, l], T[3, l], T[6, l], T[7, l], T[4, l], T[5, l]
             e = R[i, l] - (mu1 if one else mu0)
             q = e * e * (w1 if one else w0)
-            out_l[l] += q + (g1 if one else g0)
-            out_q[l] += q
+            out_l[k, l] += q + (g1 if one else g0)
+            out_q[k, l] += q
     for l in range(L):  # white (x = 1), then black (x = 0)
-        e = R[n, l] - b1[l]
-        q = e * e * r1[l]
-        out_l[l] += q + l1[l]
-        out_q[l] += q
-        e = R[n + 1, l] - bb[l]
-        q = e * e * r0[l]
-        out_l[l] += q + l0[l]
-        out_q[l] += q
+        e = R[n, l] - T[3, l]
+        q = e * e * T[7, l]
+        out_l[k, l] += q + T[5, l]
+        out_q[k, l] += q
+        e = R[n + 1, l] - T[2, l]
+        q = e * e * T[6, l]
+        out_l[k, l] += q + T[4, l]
+        out_q[k, l] += q
 
 
 @njit(cache=True, inline="always")
@@ -808,7 +808,7 @@ def _interleaved(j, chunk, k):
 
 
 @njit(cache=True, parallel=True)
-def _posterior(frames, white, black, scale, xtab, cand, searched, a, beta, flips, tail_weight, binary,
+def _posterior(frames, white, black, scale, xtab, words, cand, searched, a, beta, flips, tail_weight, binary,
                threads, ptab, pu0, pdu, pw0, pdw, pout, use_prior, out_cand, out_dist, out_err, out_gain, out_conf,
                out_contrast, out_far, out_every, out_lbest, out_tail, out_misfit):
     """Step 3 per pixel but the tail mass, LANES pixels of a row at a time: the hypotheses' NLLs
@@ -829,7 +829,8 @@ def _posterior(frames, white, black, scale, xtab, cand, searched, a, beta, flips
         if yy >= height:
             continue
         R = np.empty((m, L), np.float64)
-        X = np.empty((n, L), np.float64)
+        W = np.empty((2, L), np.uint64)
+        T = np.empty((8, L), np.float64)
         S = np.empty((9, L), np.float64)
         buf = np.empty(m, np.float64)
         xs = np.empty(m, np.float64)
@@ -842,6 +843,7 @@ def _posterior(frames, white, black, scale, xtab, cand, searched, a, beta, flips
         hq = np.empty((3, L), np.float64)
         hc = np.empty((3, L), np.float64)
         hp = np.empty((3, L), np.float64)
+        hb = np.empty((3, L), np.float64)
         flat = np.empty(L, np.float64)
         lk = np.empty(3, np.float64)
         mk = np.empty(3, np.float64)
@@ -873,9 +875,9 @@ def _posterior(frames, white, black, scale, xtab, cand, searched, a, beta, flips
                     if not need[k]:  # no lane rescores this candidate
                         continue
                     if binary:
-                        _lane_nll(R, sr, X, rows[k], n, xtab, a, beta, S, hl[k], hq[k], hc[k])
-                        for l in range(L):  # S[3]: each lane's off level b of this candidate
-                            hp[k, l] = cost_at(ptab, pu0, pdu, pw0, pdw, pout, S[3, l], hc[k, l]) if use_prior else 0.0
+                        _lane_nll(R, sr, W, rows, k, n, words, a, beta, T, hl, hq, hc, hb)
+                        for l in range(L):  # hb: each lane's off level b of this candidate
+                            hp[k, l] = cost_at(ptab, pu0, pdu, pw0, pdw, pout, hb[k, l], hc[k, l]) if use_prior else 0.0
                     else:
                         for l in range(L):
                             if scored[k, l]:
@@ -1311,6 +1313,7 @@ def _skip_cost(words: float) -> float:
 
 
 _XTAB: dict[tuple[int, bool], np.ndarray] = {}
+_WORDS: dict[tuple[int, bool], np.ndarray] = {}
 _FLIPS: dict[int, TailTables] = {}
 #: Codeword weights d_min .. d_min + TAIL_WEIGHTS enter the tail mass (`_flips`).
 TAIL_WEIGHTS = 2
@@ -1338,6 +1341,23 @@ def _xtab(code: Code, inverse: bool = False) -> np.ndarray:
             tab = np.concatenate([tab, 1.0 - tab], axis=1)
         tab = np.ascontiguousarray(tab)
         _XTAB[key] = tab
+    return tab
+
+
+def _words(code: Code, inverse: bool = False) -> np.ndarray:
+    """(size, 2) uint64 `_xtab`'s rows packed: bit i of ``[row, i // 64]`` is 1 where symbol i is
+    nonzero (the symbols of a binary code; up to 128 samples: 2n with inverse frames, n <= 64).
+    A code of more than two symbols, which `_lane_nll` does not take, gets zeros.  Cached with
+    `_xtab`."""
+    key = (id(code), bool(inverse))
+    tab = _WORDS.get(key)
+    if tab is None or tab.shape[0] != code.size:
+        x = _xtab(code, inverse)
+        tab = np.zeros((x.shape[0], 2), np.uint64)
+        if code.q == 2:
+            for i in range(x.shape[1]):
+                tab[:, i >> 6] |= (x[:, i] != 0.0).astype(np.uint64) << np.uint64(i & 63)
+        _WORDS[key] = tab
     return tab
 
 
@@ -1419,7 +1439,7 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     every = np.empty((h, w), np.float64)
     lbest = np.empty((h, w), np.float64)
     misfit = np.empty((h, w), np.float32)
-    _posterior(samples, white, black, np.float64(scale), xtab, cand, searched, float(noise.a),
+    _posterior(samples, white, black, np.float64(scale), xtab, _words(code, has_inv), cand, searched, float(noise.a),
                float(noise.beta), tail.flips, float(tail.weight), bool(np.isin(xtab, (0.0, 1.0)).all()), threads,
                *args[:7], out_cand, out_dist, competitors, gain, conf, contrast, far, every, lbest, due, misfit)
     fdr, idx = _not_lit_lookup(gain, code, choices, has_inv)
