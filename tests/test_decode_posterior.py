@@ -182,6 +182,40 @@ def test_posterior_matches_brute_force(sigma, with_prior):
         assert 0.05 < comp[exact].max() < 0.5  # the exact range holds tail-mass pixels too
 
 
+@pytest.mark.parametrize("name, inverse", [("ecc-63-10", True), ("ecc-63-10", False), ("gray-10", True)])
+def test_lane_nll_equals_the_per_pixel_nll(name, inverse):
+    """The posterior kernel's lane-parallel likelihoods of a binary code (`_lane_nll`, symbols read
+    from packed words: two words for the 126 samples of ecc-63-10 with inverse frames) give every
+    output bit for bit as its per-pixel route (`_nll`, which reads `_xtab`), which the kernel
+    takes for codes of more than two symbols; rows of a lane block with and without candidates."""
+    import edge.decode.posterior as P
+    from edge.decode.level_prior import kernel_args
+    from edge.decode.synthetic import make_capture
+
+    code = get_code(name)
+    rng = np.random.default_rng(3)
+    h, w = 4, 40
+    cap = make_capture(code, rng.integers(0, code.size, (h, w)), rng=rng, albedo=rng.uniform(0.05, 0.6, (h, w)),
+                       sigma_s=0.05, inverse=inverse)
+    samples = P._samples(cap.frames, cap.inverse)
+    cand = rng.integers(0, code.size, (h, w, 3)).astype(np.int32)
+    cand[1, :5] = -1
+    prior = level_prior(rng.normal(0.1, 0.02, 3000), np.abs(rng.normal(0.3, 0.1, 3000)))
+    outs = []
+    for binary in (True, False):
+        out = [np.empty((h, w, 3), np.int32), np.empty((h, w, 3), np.float32), np.empty((h, w)), np.empty((h, w)),
+               np.empty((h, w), np.float32), np.empty((h, w), np.float32), np.zeros((h, w)), np.zeros((h, w)),
+               np.zeros((h, w)), np.empty((h, w), np.uint8), np.empty((h, w), np.float32)]
+        tail = P._flips(code)
+        P._posterior(samples, cap.white, cap.black, np.float64(1 / 255), P._xtab(code, inverse),
+                     P._words(code, inverse), cand, np.zeros((h, w, 3), np.float32), 4e-4, 0.002, tail.flips,
+                     float(tail.weight), binary, 1, *kernel_args(prior)[:7], *out)
+        outs.append(out)
+    assert P._words(code, inverse)[:, 1].any() == (samples.shape[0] > 64)
+    for i, (a, b) in enumerate(zip(*outs)):
+        np.testing.assert_array_equal(a, b, err_msg=f"output {i}")
+
+
 def test_not_lit_probability_follows_the_share_of_unlit_pixels():
     """Gains of unlit pixels drawn from the null law get P(not lit) near 1; strongly lit ones 0;
     with no unlit pixels in the capture, the mid-range gains are not called unlit."""

@@ -937,6 +937,7 @@ def _posterior(frames, white, black, scale, xtab, words, cand, searched, a, beta
                     out_conf[yy, xx] = 0.0
                     out_contrast[yy, xx] = 0.0
                     out_misfit[yy, xx] = np.nan
+                    out_tail[yy, xx] = 0
                     continue
                 out_misfit[yy, xx] = mk[0] if top[l] < FULL_SCALE_SAMPLE else np.nan
                 out_gain[yy, xx] = flat[l] - plain
@@ -1355,8 +1356,9 @@ def _words(code: Code, inverse: bool = False) -> np.ndarray:
         x = _xtab(code, inverse)
         tab = np.zeros((x.shape[0], 2), np.uint64)
         if code.q == 2:
-            for i in range(x.shape[1]):
-                tab[:, i >> 6] |= (x[:, i] != 0.0).astype(np.uint64) << np.uint64(i & 63)
+            tab[:, 0] = pack_words(x[:, :64] != 0.0)
+            if x.shape[1] > 64:
+                tab[:, 1] = pack_words(x[:, 64:] != 0.0)
         _WORDS[key] = tab
     return tab
 
