@@ -144,8 +144,9 @@ def test_fast_paths_equal_scalar_path(name, inverse):
 
 @pytest.mark.parametrize("name", ["ecc-15-10", "ecc-22-10", "ecc-63-10", "gray-10"])
 @pytest.mark.parametrize("inverse", [False, True])
-def test_lane_search_with_a_margin_locates_every_codeword_within_it(name, inverse):
-    """With a margin the lane search returns the exact best, and each second / third that lies
+def test_search_with_a_margin_locates_every_codeword_within_it(name, inverse):
+    """With a margin the lane search, and the band search (whose blocks the lane search's first
+    step finishes where it can), return the exact best, and each second / third that lies
     within the margin exactly (row, distance, confidence) as the exact search (the scalar path)
     does; a slot it does not locate (`BEYOND`) holds, in the exact search, a codeword whose
     float32 distance is more than the margin behind the best (what the posterior's skip test
@@ -157,21 +158,24 @@ def test_lane_search_with_a_margin_locates_every_codeword_within_it(name, invers
     code = get_code(name)
     rng = np.random.default_rng(31)
     h, w = 8, 3 * LANES + 5
-    cols = rng.integers(0, code.size, (h, w))
+    cols = np.clip(np.arange(w)[None, :] - rng.integers(3, 40, (h, w)), 0, code.size - 1)  # in the bands below
     albedo = np.where(np.arange(h)[:, None] < 4, rng.uniform(0.6, 1.0, (h, w)), rng.uniform(0.0, 0.3, (h, w)))
     cap = make_capture(code, cols, rng=rng, albedo=albedo, sigma_s=0.03, inverse=inverse)
     st = validate(cap.frames, cap.white, cap.black, code, inverse=cap.inverse)
     margin = 60.0
-    cases = [((False, 0, 0), code.size), ((False, 0, 0), 700), ((True, -300, 200), code.size),
-             ((True, 0, 1), code.size), ((True, 5, 5), code.size)]
-    skipped = finished = 0
-    for band, ncols in cases:
+    cases = [("lanes", (False, 0, 0), code.size), ("lanes", (False, 0, 0), 700), ("lanes", (True, -300, 200), code.size),
+             ("lanes", (True, 0, 1), code.size), ("lanes", (True, 5, 5), code.size), ("band", (True, 3, 90), code.size),
+             ("band", (True, -20, 40), 700), ("band", (True, 0, 1), code.size), ("band", (True, 5, 5), code.size)]
+    skipped = {"lanes": 0, "band": 0}
+    finished = 0
+    for path, band, ncols in cases:
         kw = dict(metric=METRIC_ML, sigma_r=SR, sigma_s=SS, columns=ncols, band=band, stripe=1)
         ref = cpu_backend.search(st, code, path="scalar", **kw)
-        got = cpu_backend.search(st, code, path="lanes", margin=margin, **kw)
+        got = cpu_backend.search(st, code, path=path, margin=margin, **kw)
+        assert got[3]["path"] == path
         rc, rd, rconf = ref[:3]
         gc, gd, gconf = got[:3]
-        what = f"{band} {ncols}"
+        what = f"{path} {band} {ncols}"
         np.testing.assert_array_equal(gc[..., 0], rc[..., 0], err_msg=what)
         np.testing.assert_array_equal(gd[..., 0], rd[..., 0], err_msg=what)
         located = gc >= 0
@@ -187,10 +191,11 @@ def test_lane_search_with_a_margin_locates_every_codeword_within_it(name, invers
         np.testing.assert_array_equal(gconf[second], rconf[second], err_msg=what)
         if band == (True, 5, 5):  # one column: no second, none claimed beyond the margin
             assert (gc[..., 1:] == -1).all(), what
-        skipped += got[3]["margin_blocks"]
-        finished += got[3]["margin_pixels"]
-        assert got[3]["margin_pixels"] >= int((gc == BEYOND).any(axis=2).sum()), what
-    assert skipped > 0 and finished > 0  # the margin decided something (both code paths ran)
+        skipped[path] += got[3]["margin_blocks"]
+        if path == "lanes":
+            finished += got[3]["margin_pixels"]
+            assert got[3]["margin_pixels"] >= int((gc == BEYOND).any(axis=2).sum()), what
+    assert min(skipped.values()) > 0 and finished > 0  # the margin decided something (every code path ran)
 
 
 @pytest.mark.parametrize("name", ["gray-10", "gray-6", "binary-10"])

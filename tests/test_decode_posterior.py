@@ -306,6 +306,31 @@ def test_soft_search_margin_leaves_every_output_as_the_exact_search_does(monkeyp
         assert fast.stats["margin_pixels"] > 0 and fast.stats["margin_blocks"] > 0
 
 
+@pytest.mark.parametrize("name", ["ecc-22-10", "gray-10"])
+def test_soft_search_margin_in_a_band_leaves_every_output_as_the_exact_search_does(monkeypatch, name):
+    """As above, with a disparity band (the band search, whose blocks the lane search's first
+    step finishes where every pixel is beyond the margin): bright and dim rows."""
+    import edge.decode.decoder as decoder
+    from edge.decode.synthetic import make_capture
+
+    code = get_code(name)
+    rng = np.random.default_rng(12)
+    h, w = 12, 200
+    cols = np.clip(np.arange(w)[None, :] - rng.integers(0, 40, (h, w)), 0, code.size - 1)
+    albedo = np.where(np.arange(h)[:, None] < 8, rng.uniform(0.5, 0.9, (h, w)), rng.uniform(0.02, 0.2, (h, w)))
+    cap = make_capture(code, cols, rng=rng, albedo=albedo, ambient=0.05, sigma_r=0.01, sigma_s=0.03)
+    kw = dict(min_disparity=0, max_disparity=40)
+    fast = decode(cap.frames, cap.white, cap.black, code, **kw)
+    search = decoder.search_candidates
+    monkeypatch.setattr(decoder, "search_candidates", lambda *a, **k: search(*a, **dict(k, margin=None)))
+    exact = decode(cap.frames, cap.white, cap.black, code, **kw)
+    assert fast.stats["path"] == "band" and fast.stats["margin_blocks"] > 0 and exact.stats["margin_blocks"] == 0
+    for field in ("column", "valid", "error", "confidence", "distances"):
+        np.testing.assert_array_equal(getattr(fast, field), getattr(exact, field), err_msg=field)
+    moved = fast.candidates != exact.candidates
+    assert moved.any() and (fast.candidates[moved] == -1).all() and np.isinf(exact.distances[moved]).all()
+
+
 def test_spatial_methods_correct_instead_of_discard():
     f, w, b, bd, col, lit = _sim(ECC, 1.0)
     err = {}

@@ -49,8 +49,9 @@ def search(
     """Exact top-3 search: (candidates (H,W,3) i32, distances (H,W,3) f32, confidence (H,W) f32, stats).
 
     margin (distance units, > 0; None: exact top-3): the second and third candidates are only
-    located within ``margin`` of the best (the "lanes" path, `kernels.soft_lanes`; the other paths
-    return exact top-3, which meets the same contract): a slot beyond it may hold row
+    located within ``margin`` of the best (the "lanes" path, `kernels.soft_lanes`, and the "band"
+    path's blocks that the lane search's first step finishes, `kernels.soft_band_fold`; the other
+    paths return exact top-3, which meets the same contract): a slot beyond it may hold row
     `kernels.BEYOND` (-2, distance inf), a codeword at least ``margin`` behind the best in
     float32 distances.  The best candidate, and every slot within the margin, are exact.
 
@@ -96,24 +97,26 @@ def search(
         elif stack.frames.dtype == np.uint16 and h * w >= 65536:
             levels = 65536
     model = kernels.CostModel(metric, sr2, ss2, q_scale, kernels.log_levels(levels, stack.scale, sr2, ss2))
+    margin_q = -1 if margin is None else int(math.ceil((float(margin) + MARGIN_SLACK) * q_scale))
+    margin_f = np.inf if margin is None else float(margin)
     bnd = kernels.Band(int(columns), bool(use_band), int(min_d), int(max_d), int(stripe))
     if code.q != 2:
         kernels.soft_nary(*pixels, model, tb.nary_tables, bnd, cand, dist, conf)
         st = {"path": "nary", "brute_pixels": h * w, "evaluated": -1}
     elif path == "band":
-        stats = np.zeros((h, 3), np.int64)
-        kernels.soft_band_fold(*pixels, model, tb.fold_tables, bnd, cand, dist, conf, stats)
+        stats = np.zeros((h, 4), np.int64)
+        kernels.soft_band_fold(*pixels, model, tb.fold_tables, bnd, tb.lane_tables, np.int64(margin_q),
+                               np.float64(margin_f), cand, dist, conf, stats)
         st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum()),
-              "wide_key_pixels": int(stats[:, 2].sum())}
+              "wide_key_pixels": int(stats[:, 2].sum()), "margin_blocks": int(stats[:, 3].sum())}
     elif path == "band-scan":
         stats = np.zeros((h, 2), np.int64)
         kernels.soft_band(*pixels, model, tb.scan_tables, bnd, cand, dist, conf, stats)
         st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
     elif path == "lanes":
         stats = np.zeros((h, 8), np.int64)
-        margin_q = -1 if margin is None else int(math.ceil((float(margin) + MARGIN_SLACK) * q_scale))
-        kernels.soft_lanes(*pixels, model, tb.lane_tables, bnd, np.int64(margin_q),
-                           np.float64(np.inf if margin is None else margin), cand, dist, conf, stats)
+        kernels.soft_lanes(*pixels, model, tb.lane_tables, bnd, np.int64(margin_q), np.float64(margin_f),
+                           cand, dist, conf, stats)
         tot = stats.sum(axis=0)
         st = {"path": path, "brute_pixels": 0, "evaluated": int(tot[1]),
               "second_class_pixels": int(tot[0]), "second_class_blocks": int(tot[2]),

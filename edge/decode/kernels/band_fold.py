@@ -10,6 +10,7 @@ import numpy as np
 from numba import njit, prange
 
 from .cost import LANES, _block_llr
+from .lanes import margin_block, margin_scratch
 from .top3 import IDX_BITS, NO_KEY, _insert, _write, _write_none
 
 
@@ -137,8 +138,8 @@ def _top3_cols(Z, z0off, m, W, k1, k2, k3, lo, hi, cmin, c_first, c_last, zcap, 
 
 
 @njit(cache=True)
-def _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, model, tables, band,
-                   out_col, out_dist, out_conf, out_stats):
+def _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, model, tables, band, lane_tables,
+                   margin_q, margin, out_col, out_dist, out_conf, out_stats):
     """Row yy of `soft_band_fold` (a plain function: keeps the parallel kernel small to compile)."""
     metric, sr2, ss2, q_scale, ltab = model.metric, model.sr2, model.ss2, model.q_scale, model.ltab
     fold_b, fold_v, fold_sgn = tables.fold_b, tables.fold_v, tables.fold_sgn
@@ -165,6 +166,8 @@ def _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, model, tab
     pixels = 0
     evaluated = 0
     wide = 0
+    skipped = 0
+    sc = margin_scratch(n, lane_tables.cls_weight.shape[0])
     for x0 in range(0, width, L):
         nact = _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale,
                           ltab, yy, x0, True, min_d, max_d, stripe, ncols, R, RI, PA, Y, dmin, active, lo, hi)
@@ -172,6 +175,12 @@ def _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, model, tab
             for l in range(L):
                 if x0 + l < width:
                     _write_none(out_col, out_dist, out_conf, yy, x0 + l)
+            continue
+        if margin_block(Y, n, lane_tables, active, lo, hi, dmin, q_scale, margin_q, margin, x0, width, sc,
+                        out_col, out_dist, out_conf, yy):
+            skipped += 1
+            pixels += nact
+            evaluated += nact
             continue
         # union of the active lanes' bands; lanes past the image get an empty band that keeps
         # lo and hi non-decreasing in l (so each column's lanes are one interval)
@@ -281,11 +290,12 @@ def _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, model, tab
     out_stats[yy, 0] = pixels
     out_stats[yy, 1] = evaluated
     out_stats[yy, 2] = wide
+    out_stats[yy, 3] = skipped
 
 
 @njit(cache=True, parallel=True)
-def soft_band_fold(frames, inverse, has_inv, white, black, scale, model, tables, band,
-                   out_col, out_dist, out_conf, out_stats):
+def soft_band_fold(frames, inverse, has_inv, white, black, scale, model, tables, band, lane_tables,
+                   margin_q, margin, out_col, out_dist, out_conf, out_stats):
     """Exact top-3 soft decoding of a column-linear binary code within a disparity band, LANES
     pixels of a row at a time, by folded Walsh-Hadamard transforms of 2**fold_b-column blocks.
 
@@ -306,10 +316,15 @@ def soft_band_fold(frames, inverse, has_inv, white, black, scale, model, tables,
     masks_t, so the result is exact and bit-identical in every case.  Per
     column block the transform covers only the lanes whose band meets it (rounded out to 8).
     model: `CostModel`; tables: `edge.decode.tables.FoldTables`; band: `Band` (always applied).
-    Same outputs as `soft_band`; out_stats (H, 3): decoded pixels, candidate evaluations,
-    pixels redone with 64-bit keys.
+    Same outputs as `soft_band`.  A margin (``margin_q >= 0``, `soft_lanes`' arguments, with its
+    ``lane_tables``): a block whose every pixel's nearest codeword is in its band and more than
+    the margin ahead of every other codeword is written as the lane search with that margin
+    writes it (`lanes.margin_block`: the best exact, the other slots `BEYOND` or empty), without
+    its transforms; every other block is searched as without a margin (exact top-3).
+    out_stats (H, 4): decoded pixels, candidate evaluations (one per pixel of a block the margin
+    finished), pixels redone with 64-bit keys, blocks the margin finished.
     """
     height = frames.shape[1]
     for yy in prange(height):
-        _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, model, tables, band,
-                       out_col, out_dist, out_conf, out_stats)
+        _band_fold_row(yy, frames, inverse, has_inv, white, black, scale, model, tables, band, lane_tables,
+                       margin_q, margin, out_col, out_dist, out_conf, out_stats)

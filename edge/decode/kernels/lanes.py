@@ -13,6 +13,8 @@ pending block that evaluates the next classes.  On the issue-4 benchmark (ecc-22
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit, prange
 
@@ -224,6 +226,105 @@ def _beyond_keys(k1, k2, k3, bound, lo, hi):
     return b2, b3
 
 
+@njit(cache=True, inline="always")
+def _nearest(Y, n, masks, syn_col, col_bit, leader, leader_col, has_leader, SYN, COLH, HM, E, colref, V, base):
+    """Per lane, from the quantised cost differences Y (n, LANES): c_ref (its column in colref,
+    the flips from h in E), base = cost(c_ref) and V (n, LANES) (`soft_lanes`).  Scratch SYN,
+    COLH, HM (LANES,) int64."""
+    L = LANES
+    # hard decision -> syndrome and column of h, lane-parallel
+    for l in range(L):
+        SYN[l] = 0
+        COLH[l] = 0
+        HM[l] = 0
+    for i in range(n):
+        sc = syn_col[i]
+        cbit = col_bit[i]
+        ibit = np.int64(1) << i
+        for l in range(L):
+            m = -np.int64(Y[i, l] > 0)
+            SYN[l] ^= sc & m
+            COLH[l] ^= cbit & m
+            HM[l] |= ibit & m
+    for l in range(L):
+        if has_leader:
+            E[l] = np.int64(leader[SYN[l]])
+            colref[l] = np.int32(COLH[l] ^ leader_col[SYN[l]])
+        else:
+            E[l] = HM[l] ^ np.int64(masks[COLH[l]])
+            colref[l] = np.int32(COLH[l])
+        base[l] = 0
+    for i in range(n):
+        for l in range(L):
+            yv = Y[i, l]
+            wv = max(yv, -yv)
+            bit = (E[l] >> i) & 1
+            V[i, l] = wv - 2 * wv * np.int32(bit)
+            base[l] += wv * np.int32(bit)
+
+
+class MarginScratch(NamedTuple):
+    """Per-row scratch of `margin_block` (`margin_scratch`)."""
+
+    SYN: np.ndarray
+    COLH: np.ndarray
+    HM: np.ndarray
+    E: np.ndarray
+    colref: np.ndarray
+    V: np.ndarray
+    SV: np.ndarray
+    base: np.ndarray
+    lb: np.ndarray
+    run: np.ndarray
+    k1: np.ndarray
+
+
+@njit(cache=True, inline="always")
+def margin_scratch(n, nclass):
+    """A `MarginScratch` for codes of n positions and nclass weight classes."""
+    L = LANES
+    return MarginScratch(np.zeros(L, np.int64), np.zeros(L, np.int64), np.zeros(L, np.int64),
+                         np.zeros(L, np.int64), np.zeros(L, np.int32), np.zeros((n, L), np.int32),
+                         np.zeros((n, L), np.int32), np.zeros(L, np.int32), np.zeros((nclass + 1, L), np.int64),
+                         np.zeros(L, np.int64), np.zeros(L, np.int64))
+
+
+@njit(cache=True, inline="always")
+def margin_block(Y, n, tables, active, lo, hi, dmin, q_scale, margin_q, margin, x0, width, sc,
+                 out_col, out_dist, out_conf, yy):
+    """A block of LANES pixels whose every active lane is beyond the margin after D = 0 (the
+    nearest codeword c_ref, in its range [lo, hi], ahead of every other codeword by the margin:
+    `_beyond` of the lightest class's bound) is written as `soft_lanes` writes it (best c_ref,
+    the other slots `BEYOND_KEY` or empty by `_beyond_keys`) and True is returned; otherwise
+    nothing is written, False.  For a search of the same block by another kernel (the band's):
+    the lane search's first step only, scratch ``sc`` (`margin_scratch`)."""
+    if margin_q < 0 or tables.cls_weight.shape[0] == 0:
+        return False
+    _nearest(Y, n, tables.masks, tables.syn_col, tables.col_bit, tables.leader, tables.leader_col,
+             tables.has_leader, sc.SYN, sc.COLH, sc.HM, sc.E, sc.colref, sc.V, sc.base)
+    nclass = tables.cls_weight.shape[0]
+    _class_bounds(sc.V, sc.SV, sc.run, sc.lb, n, tables.cls_weight, nclass)
+    L = LANES
+    for l in range(L):
+        cr = sc.colref[l]
+        ok = (cr >= lo[l]) & (cr <= hi[l])
+        sc.k1[l] = ((np.int64(sc.base[l]) << IDX_BITS) | np.int64(cr)) if ok else NO_KEY
+    for l in range(L):
+        if active[l] and x0 + l < width:
+            if not _beyond(sc.k1[l], sc.base[l] + sc.lb[0, l], margin_q, margin, dmin[l], q_scale):
+                return False
+    for l in range(L):
+        xx = x0 + l
+        if xx >= width:
+            break
+        if not active[l]:
+            _write_none(out_col, out_dist, out_conf, yy, xx)
+            continue
+        b2, b3 = _beyond_keys(sc.k1[l], NO_KEY, NO_KEY, sc.base[l] + sc.lb[0, l], lo[l], hi[l])
+        _write(out_col, out_dist, out_conf, yy, xx, sc.k1[l], b2, b3, dmin[l], q_scale, margin)
+    return True
+
+
 @njit(cache=True)
 def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables, band, margin_q, margin,
                out_col, out_dist, out_conf, out_stats):
@@ -290,35 +391,7 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
         nact = _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2,
                           q_scale, ltab, yy, x0, use_band, min_d, max_d, stripe, ncols, R, RI, PA,
                           Y, dmin, active, lo, hi)
-        # hard decision -> syndrome and column of h, lane-parallel
-        for l in range(L):
-            SYN[l] = 0
-            COLH[l] = 0
-            HM[l] = 0
-        for i in range(n):
-            sc = syn_col[i]
-            cbit = col_bit[i]
-            ibit = np.int64(1) << i
-            for l in range(L):
-                m = -np.int64(Y[i, l] > 0)
-                SYN[l] ^= sc & m
-                COLH[l] ^= cbit & m
-                HM[l] |= ibit & m
-        for l in range(L):
-            if has_leader:
-                E[l] = np.int64(leader[SYN[l]])
-                colref[l] = np.int32(COLH[l] ^ leader_col[SYN[l]])
-            else:
-                E[l] = HM[l] ^ np.int64(masks[COLH[l]])
-                colref[l] = np.int32(COLH[l])
-            base[l] = 0
-        for i in range(n):
-            for l in range(L):
-                yv = Y[i, l]
-                wv = max(yv, -yv)
-                bit = (E[l] >> i) & 1
-                V[i, l] = wv - 2 * wv * np.int32(bit)
-                base[l] += wv * np.int32(bit)
+        _nearest(Y, n, masks, syn_col, col_bit, leader, leader_col, has_leader, SYN, COLH, HM, E, colref, V, base)
         if nact == 0:
             for l in range(L):
                 if x0 + l < width:
