@@ -103,7 +103,7 @@ class Decoded:
         with a margin (the "error" rule's soft method), ``margin_pixels`` / ``margin_blocks``
         (pixels finished by it, blocks that skipped their lightest class); the
         "band" path adds ``wide_key_pixels`` (pixels whose costs exceeded the 32-bit keys and were
-        redone with 64-bit keys, see `kernels.soft_band_fold`).  Under the "error" rule it adds
+        redone with 64-bit keys, see `kernels.soft_band_fold`) and ``margin_blocks``.  Under the "error" rule it adds
         ``rule``, ``levels``, ``level_source`` ("split", "calibration" or "refit",
         `DecodeSettings.level_source`) and the fitted noise model ``noise_a`` / ``noise_beta`` (variance
         ``a + beta * I``, normalised units) with ``noise_fitted``.  Under the "confidence" rule

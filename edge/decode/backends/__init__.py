@@ -3,12 +3,16 @@
 A backend is a module with two functions (the seam every backend implements, tested against the
 brute-force reference in tests/test_decode.py):
 
-``search(stack, code, *, metric, sigma_r, sigma_s, columns, band, stripe, path=None)``
+``search(stack, code, *, metric, sigma_r, sigma_s, columns, band, stripe, path=None, margin=None)``
     Exact soft top-3 over the codebook rows ``0..columns-1`` (restricted to the disparity
     ``band = (use_band, min_d, max_d)``, pixels).  ``stack``: `edge.capture.CodedCapture` (from `edge.decode.inputs.validate`);
     ``metric``: `edge.decode.kernels.METRIC_ML` / ``METRIC_NORMALIZED`` / ``METRIC_HARD``.
     Returns ``(candidates (H,W,3) int32, distances (H,W,3) float32, confidence (H,W) float32,
     stats dict)``; costs are quantised with `Q_SCALE` so every backend returns the same arrays.
+    ``margin`` (distance units, or None): the second and third need only be located within it
+    of the best; a slot beyond may hold row `edge.decode.kernels.BEYOND` (-2, distance inf).
+    The exact top three meet this too (a backend may ignore it; the CPU's lane and band searches
+    use it, `edge.decode.backends.cpu.search`).
 ``hard(stack, code, *, columns, band, stripe)``
     Hard decisions against (white + black)/2 (or pattern vs inverse), nearest codeword in
     Hamming distance; same return as ``search``.

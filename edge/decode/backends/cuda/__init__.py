@@ -85,10 +85,11 @@ def _host(cand, dist, conf, st, t0: float) -> tuple[np.ndarray, np.ndarray, np.n
 
 
 def search(stack: CodedCapture, code: Code, *, metric: int, sigma_r: float, sigma_s: float, columns: int,
-           band: tuple[bool, int, int], stripe: int, path: str | None = None):
+           band: tuple[bool, int, int], stripe: int, path: str | None = None, margin: float | None = None):
     """Exact top-3 search on the GPU (see `edge.decode.backends`): one upload, one download.
 
-    path (binary codes): "all" or "band" (`device.search_device`); None picks one."""
+    path (binary codes): "all" or "band" (`device.search_device`); None picks one.  margin: not
+    used (the exact top three meet its contract, `edge.decode.backends`)."""
     t0 = time.perf_counter()
     ds = upload(stack)
     cand, dist, conf, st = search_device(ds, code, metric=metric, sigma_r=sigma_r, sigma_s=sigma_s,
