@@ -5,7 +5,9 @@ values times ``stack.scale`` = normalised intensity) and the settings' ``method`
 ``sigma_r``, ``sigma_s`` and ``backend`` -> `Candidates`:
 
 * ``candidates`` (H, W, 3) int32: the three best codebook rows (projector column // stripe),
-  best first, -1 where fewer exist (white <= black, empty disparity band);
+  best first, -1 where fewer exist (white <= black, empty disparity band); searched with a
+  ``margin``, the second and third only where within it of the best (-2 = `kernels.BEYOND`, a
+  codeword further behind that was not located; the error rule's soft method);
 * ``distances`` (H, W, 3) float32: their distances (ML: -2 log-likelihood up to a per-pixel
   constant; normalised: sum of squared normalised errors; hard: Hamming), inf where absent;
 * ``confidence`` (H, W) float32 in [0, 1]: ``(d2 - d1) / d2`` (hard syndrome path:
