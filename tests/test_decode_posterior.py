@@ -331,6 +331,33 @@ def test_soft_search_margin_in_a_band_leaves_every_output_as_the_exact_search_do
     assert moved.any() and (fast.candidates[moved] == -1).all() and np.isinf(exact.distances[moved]).all()
 
 
+@pytest.mark.parametrize("validity", ["error", "confidence"])
+def test_refit_levels_search_only_the_best_and_decode_as_before(monkeypatch, validity):
+    """`levels="refit"` reads only the best candidate of its first searches, which run with no
+    margin (`decoder.TOP1_MARGIN`): its decode equals one whose searches are all exact."""
+    import edge.decode.decoder as decoder
+
+    f, w, b, bd, _, _ = _sim(ECC, 0.25)
+    calls = []
+    search = decoder.search_candidates
+
+    def spy(*a, **k):
+        out = search(*a, **k)
+        calls.append(out.stats.get("margin_pixels", 0))
+        return out
+
+    monkeypatch.setattr(decoder, "search_candidates", spy)
+    fast = decode(f, w, b, ECC, bit_depth=bd, levels="refit", validity=validity)
+    assert max(calls) > 0  # a first search finished pixels by the margin
+    monkeypatch.setattr(decoder, "search_candidates", lambda *a, **k: search(*a, **dict(k, margin=None)))
+    exact = decode(f, w, b, ECC, bit_depth=bd, levels="refit", validity=validity)
+    for field in ("column", "valid", "confidence", "distances", "error"):
+        np.testing.assert_array_equal(getattr(fast, field), getattr(exact, field), err_msg=field)
+    moved = fast.candidates != exact.candidates  # the error rule's own final search: its margin, as above
+    assert (validity == "error" or not moved.any()) and (fast.candidates[moved] == -1).all()
+    assert np.isinf(exact.distances[moved]).all()
+
+
 def test_spatial_methods_correct_instead_of_discard():
     f, w, b, bd, col, lit = _sim(ECC, 1.0)
     err = {}

@@ -206,6 +206,11 @@ def _settings(settings: DecodeSettings | None, options: dict[str, Any]) -> Decod
     return (DEFAULT_SETTINGS if settings is None else settings).replace(**options)
 
 
+#: The margin of a search whose best candidate alone is read (the levels' refit): none, so the
+#: second and third are never located (`search_candidates`; the best stays exact).
+TOP1_MARGIN = 0.0
+
+
 def _decode(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code, s: DecodeSettings, *,
             inverse: np.ndarray | None, min_disparity: float | None, max_disparity: float | None,
             columns: int | None, stripe: int, bit_depth: int | None, iterations: int = 1) -> Decoded:
@@ -218,7 +223,8 @@ def _decode(frames: np.ndarray, white: np.ndarray, black: np.ndarray, code: Code
     first = s.replace(method="hard" if s.method == "hard" else "soft")
 
     def top1(st: CodedCapture) -> np.ndarray:
-        return search_candidates(st, code, first, columns=ncols, band=band, stripe=stripe).candidates[..., 0]
+        return search_candidates(st, code, first, columns=ncols, band=band, stripe=stripe,
+                                 margin=TOP1_MARGIN).candidates[..., 0]
 
     searched = estimate_levels(stack, code, s.level_source("confidence", code.q), top1, iterations=iterations)
     found = search_candidates(searched, code, s, columns=ncols, band=band, stripe=stripe)
@@ -288,7 +294,7 @@ def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, nc
     if source == "refit":
         first = s.replace(method="hard" if s.method == "hard" else "soft")
         searched = estimate_levels(stack, code, "refit", lambda st: search_candidates(
-            st, code, first, columns=ncols, band=band, stripe=stripe).candidates[..., 0])
+            st, code, first, columns=ncols, band=band, stripe=stripe, margin=TOP1_MARGIN).candidates[..., 0])
     elif source == "split":
         on, off, first_noise = split_levels(stack.frames, stack.white, stack.black, float(scale),
                                             prior=(s.sigma_r, s.sigma_s), inverse=stack.inverse)
