@@ -263,6 +263,27 @@ def _nearest(Y, n, masks, syn_col, col_bit, leader, leader_col, has_leader, SYN,
             base[l] += wv * np.int32(bit)
 
 
+@njit(cache=True, inline="always")
+def _first_keys(colref, base, lo, hi, k1):
+    """k1 (LANES,) = each lane's key of c_ref (cost base), NO_KEY where its column is outside the
+    lane's range [lo, hi] (the search's first candidate, D = 0)."""
+    for l in range(LANES):
+        cr = colref[l]
+        ok = (cr >= lo[l]) & (cr <= hi[l])
+        k1[l] = ((np.int64(base[l]) << IDX_BITS) | np.int64(cr)) if ok else NO_KEY
+
+
+@njit(cache=True, inline="always")
+def _block_beyond(k1, base, lb, active, x0, width, margin_q, margin, dmin, q_scale):
+    """Whether every active lane of the block (inside the image) is `_beyond` the margin with the
+    lightest class's bound ``base + lb[0]``: then no codeword but c_ref needs evaluating."""
+    for l in range(LANES):
+        if active[l] and x0 + l < width:
+            if not _beyond(k1[l], base[l] + lb[0, l], margin_q, margin, dmin[l], q_scale):
+                return False
+    return True
+
+
 class MarginScratch(NamedTuple):
     """Per-row scratch of `margin_block` (`margin_scratch`)."""
 
@@ -304,15 +325,10 @@ def margin_block(Y, n, tables, active, lo, hi, dmin, q_scale, margin_q, margin, 
              tables.has_leader, sc.SYN, sc.COLH, sc.HM, sc.E, sc.colref, sc.V, sc.base)
     nclass = tables.cls_weight.shape[0]
     _class_bounds(sc.V, sc.SV, sc.run, sc.lb, n, tables.cls_weight, nclass)
+    _first_keys(sc.colref, sc.base, lo, hi, sc.k1)
+    if not _block_beyond(sc.k1, sc.base, sc.lb, active, x0, width, margin_q, margin, dmin, q_scale):
+        return False
     L = LANES
-    for l in range(L):
-        cr = sc.colref[l]
-        ok = (cr >= lo[l]) & (cr <= hi[l])
-        sc.k1[l] = ((np.int64(sc.base[l]) << IDX_BITS) | np.int64(cr)) if ok else NO_KEY
-    for l in range(L):
-        if active[l] and x0 + l < width:
-            if not _beyond(sc.k1[l], sc.base[l] + sc.lb[0, l], margin_q, margin, dmin[l], q_scale):
-                return False
     for l in range(L):
         xx = x0 + l
         if xx >= width:
@@ -397,10 +413,8 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
                 if x0 + l < width:
                     _write_none(out_col, out_dist, out_conf, yy, x0 + l)
             continue
+        _first_keys(colref, base, lo, hi, k1)
         for l in range(L):
-            cr = colref[l]
-            ok = (cr >= lo[l]) & (cr <= hi[l])
-            k1[l] = ((np.int64(base[l]) << IDX_BITS) | np.int64(cr)) if ok else NO_KEY
             k2[l] = NO_KEY
             k3[l] = NO_KEY
         evaluated += nact
@@ -409,11 +423,7 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
             _class_bounds(V, SV, run, lb, n, cls_weight, nclass)
             # with a margin: the lightest class is skipped where every lane's best is already
             # the margin ahead of all other codewords
-            skip = margin_q >= 0
-            for l in range(L):
-                if skip and active[l] and x0 + l < width:
-                    skip = _beyond(k1[l], base[l] + lb[0, l], margin_q, margin, dmin[l], q_scale)
-            if skip:
+            if _block_beyond(k1, base, lb, active, x0, width, margin_q, margin, dmin, q_scale):
                 blocks_margin += 1
             else:
                 evaluated += nact * _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, L, 0,
