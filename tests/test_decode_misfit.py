@@ -55,7 +55,7 @@ def test_the_binary_kernel_is_the_general_one_bit_for_bit(name, inverse, dtype):
     general kernel (`_misfit_stat`, the one q-ary codes and binary codes of more than 64 samples
     use) gives the same values bit for bit: random samples, rows (-1 included), full-scale samples."""
     from edge.decode import misfit as M
-    from edge.decode.posterior import _samples, _xtab
+    from edge.decode.posterior import _samples, _xtab, packed_symbols
 
     code = get_code(name)
     rng = np.random.default_rng(3)
@@ -68,15 +68,17 @@ def test_the_binary_kernel_is_the_general_one_bit_for_bit(name, inverse, dtype):
     f[2, 3, 4] = dtype(top)  # a sample at full scale
     best = rng.integers(-1, code.size, (h, w)).astype(np.int32)
     xtab = _xtab(code, inverse)
-    packed = M.packed_symbols(xtab)
+    packed = packed_symbols(xtab)
     unpacked = (packed[:, None] >> np.arange(xtab.shape[1], dtype=np.uint64)) & np.uint64(1)
     assert packed.size == code.size and (unpacked == xtab).all()
+    assert np.array_equal(M._packed(code, inverse), packed)  # the table misfit_statistic reads
     got = misfit_statistic(f, wh, bl, scale, code, best, (4e-6, 1.6e-3), inverse=inv)
     want = np.empty((h, w), np.float32)
     M._misfit_stat(_samples(f, inv), wh, bl, np.float64(scale), xtab, best, 4e-6, 1.6e-3, want)
     assert np.array_equal(got, want, equal_nan=True) and np.isnan(got[3, 4]) and np.isnan(got[best < 0]).all()
-    assert M.packed_symbols(_xtab(get_code("ecc-63-10"), True)).size == 0  # 126 samples: the general kernel
-    assert M.packed_symbols(_xtab(get_code("nary3-6"), False)).size == 0  # q-ary symbols
+    assert packed_symbols(_xtab(get_code("ecc-63-10"), True)).size == 0  # 126 samples: the general kernel
+    assert packed_symbols(_xtab(get_code("nary3-6"), False)).size == 0  # q-ary symbols
+    assert M._packed(get_code("ecc-63-10"), True).size == 0 and M._packed(get_code("nary3-6"), False).size == 0
 
 
 def test_threshold_is_the_scaled_chi2_tail():

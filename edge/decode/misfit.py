@@ -48,8 +48,7 @@ from numba import njit, prange
 
 from ..capture import CodedCapture
 from ..codes import Code
-from ..codes.words import pack_words
-from .posterior import FULL_SCALE_SAMPLE, _ls_levels, _samples, _xtab
+from .posterior import FULL_SCALE_SAMPLE, _ls_levels, _samples, _words, _xtab
 
 #: A right pixel misfits with about this probability (the chi2 tail of the test).
 MISFIT_LEVEL = 1e-6
@@ -173,7 +172,7 @@ def _misfit_stat(frames, white, black, scale, xtab, best, a, beta, out):
 def _misfit_stat_binary(frames, white, black, scale, packed, best, a, beta, out):
     """`_misfit_stat` of a binary code (every symbol 0 or 1) with at most 64 samples of code per
     pixel, branch-free so that the row loops vectorise: each pixel's symbols are the bits of its
-    row's packed word (`packed_symbols`: ``packed[row] >> i & 1`` for sample i), the sums and
+    row's packed word (`posterior.packed_symbols`: ``packed[row] >> i & 1`` for sample i), the sums and
     residuals are taken in `_misfit_stat`'s order with its operations (a symbol-1 sample's mean
     is ``b + c``, a symbol-0 sample's ``b``), so the values are `_misfit_stat`'s bit for bit."""
     n, height, width = frames.shape
@@ -204,27 +203,12 @@ def _misfit_stat_binary(frames, white, black, scale, packed, best, a, beta, out)
         _row_finish(white, black, best, yy, scale, bb, cc, r0, r1, top, acc, out)
 
 
-def packed_symbols(xtab: np.ndarray) -> np.ndarray:
-    """(rows,) uint64: bit i of row r set where ``xtab[r, i] == 1``, for a table of 0 / 1 symbols
-    with at most 64 columns (a binary code's `edge.decode.posterior._xtab`, inverse frames
-    included); empty (0,) for any other table, which `_misfit_stat` reads as it is."""
-    if xtab.shape[1] > 64 or not np.isin(xtab, (0.0, 1.0)).all():
-        return np.zeros(0, np.uint64)
-    return np.ascontiguousarray(pack_words(xtab == 1.0))
-
-
-_PACKED: dict[tuple[int, bool], tuple[np.ndarray, np.ndarray]] = {}
-
-
 def _packed(code: Code, inverse: bool) -> np.ndarray:
-    """`packed_symbols` of ``_xtab(code, inverse)``, cached with the table it was made from."""
-    key = (id(code), bool(inverse))
-    xtab = _xtab(code, inverse)
-    hit = _PACKED.get(key)
-    if hit is None or hit[0] is not xtab:
-        hit = (xtab, packed_symbols(xtab))
-        _PACKED[key] = hit
-    return hit[1]
+    """`packed_symbols` of ``_xtab(code, inverse)`` (the posterior's cached `_words`, row 0):
+    empty for a code of more than two symbols or more than 64 samples."""
+    if code.q != 2 or _xtab(code, inverse).shape[1] > 64:
+        return np.zeros(0, np.uint64)
+    return _words(code, inverse)[0]
 
 
 def misfit_statistic(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: float, code: Code,

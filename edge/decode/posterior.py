@@ -717,7 +717,7 @@ def _lane_nll(R, sr, W, rows, k, n, words, a, beta, T, out_l, out_q, out_c, out_
     """`_nll` of codebook row ``rows[k, l]`` (>= 0) of every lane of a binary code (symbols 0 /
     1), lane-parallel, into row k of out_l / out_q / out_c / out_b (3, LANES) (L, Mahalanobis
     part, contrast c, off level b).  The symbols are read from the packed words (`_words`: bit i
-    of ``words[row, i // 64]`` = symbol i), which vectorises where a gather of `_xtab`'s rows does
+    of ``words[i // 64, row]`` = symbol i), which vectorises where a gather of `_xtab`'s rows does
     not.  Each lane's sums run over the samples in `_fit` / `_nll`'s order with the same
     operations (``x * x == x`` for a 0 / 1 symbol, so `_fit`'s sum of x**2 is its sum of x), so
     the values are theirs bit for bit.  sr (LANES,): the sum of each lane's m samples (`_fit`'s
@@ -726,8 +726,8 @@ def _lane_nll(R, sr, W, rows, k, n, words, a, beta, T, out_l, out_q, out_c, out_
     L = LANES
     for l in range(L):
         r = rows[k, l]
-        W[0, l] = words[r, 0]
-        W[1, l] = words[r, 1]
+        W[0, l] = words[0, r]
+        W[1, l] = words[1, r]
     for l in range(L):
         T[0, l] = 1.0  # sum of x (white: x = 1)
         T[1, l] = R[n, l]  # sum of x r
@@ -1345,20 +1345,30 @@ def _xtab(code: Code, inverse: bool = False) -> np.ndarray:
     return tab
 
 
+def packed_symbols(xtab: np.ndarray) -> np.ndarray:
+    """(rows,) uint64: bit i of row r set where ``xtab[r, i] == 1``, for a table of 0 / 1 symbols
+    with at most 64 columns (a binary code's `_xtab`, inverse frames included, or a part of it);
+    empty (0,) for any other table (`edge.decode.misfit` then takes its general kernel)."""
+    if xtab.shape[1] > 64 or not np.isin(xtab, (0.0, 1.0)).all():
+        return np.zeros(0, np.uint64)
+    return np.ascontiguousarray(pack_words(xtab == 1.0))
+
+
 def _words(code: Code, inverse: bool = False) -> np.ndarray:
-    """(size, 2) uint64 `_xtab`'s rows packed: bit i of ``[row, i // 64]`` is 1 where symbol i is
-    nonzero (the symbols of a binary code; up to 128 samples: 2n with inverse frames, n <= 64).
-    A code of more than two symbols, which `_lane_nll` does not take, gets zeros.  Cached with
-    `_xtab`."""
+    """(2, size) uint64 `_xtab`'s rows packed (`packed_symbols` of its columns 0-63 and 64-127):
+    bit i of ``[i // 64, row]`` is symbol i of a binary code's row (up to 128 samples: 2n with
+    inverse frames, n <= 64).  A code of more than two symbols, which `_lane_nll` does not take,
+    gets zeros.  Cached with `_xtab`; row 0 is `edge.decode.misfit`'s packed table where the
+    samples are at most 64."""
     key = (id(code), bool(inverse))
     tab = _WORDS.get(key)
-    if tab is None or tab.shape[0] != code.size:
+    if tab is None or tab.shape[1] != code.size:
         x = _xtab(code, inverse)
-        tab = np.zeros((x.shape[0], 2), np.uint64)
+        tab = np.zeros((2, x.shape[0]), np.uint64)
         if code.q == 2:
-            tab[:, 0] = pack_words(x[:, :64] != 0.0)
+            tab[0] = packed_symbols(x[:, :64])
             if x.shape[1] > 64:
-                tab[:, 1] = pack_words(x[:, 64:] != 0.0)
+                tab[1] = packed_symbols(x[:, 64:])
         _WORDS[key] = tab
     return tab
 
