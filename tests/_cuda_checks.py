@@ -230,6 +230,7 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     prior = level_prior(off, rng.uniform(0.0, 0.6, 4000))
     beta = 1e-3
     ptab, pu0, pdu, pw0, pdw, pout, use, least = kernel_args(prior)
+    edges = contrast_edges(prior)
     tail = P._flips(code)
     packed, flips, weight, wlo, whi = tail.packed, tail.flips, tail.weight, tail.wlo, tail.whi
     scale = 1.0 / 255.0
@@ -241,11 +242,11 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     misfit = np.empty((h, w), np.float32)
     P._posterior(samples, white, black, scale, xtab, P._words(code, inverse), cand, searched, a, beta, flips,
                  float(weight), True, 1,
-                 ptab, pu0, pdu, pw0, pdw, pout, use, *ref, far, every, lbest, due, misfit)
+                 ptab, pu0, pdu, pw0, pdw, pout, use, edges, *ref, far, every, lbest, due, misfit)
     # every due pixel's tail (P(not lit) = 0 everywhere, on both)
     P._tail_pass(samples, white, black, scale, xtab, code.n, ref[0], due, far, every, lbest,
                  np.zeros((h, w), np.int64), np.zeros(1), a, beta, packed, flips, tail.columns, float(weight),
-                 int(wlo), int(whi), 1.0, 1, ptab, pu0, pdu, pw0, pdw, pout, use, least, contrast_edges(prior),
+                 int(wlo), int(whi), 1.0, 1, ptab, pu0, pdu, pw0, pdw, pout, use, least, edges,
                  P._skip_cost(flips.size * weight), ref[2])
     tb = posterior_tables(code, inverse)
     out = [cuda.device_array((h, w, 3), np.int32), cuda.device_array((h, w, 3), np.float32),
@@ -284,7 +285,7 @@ def check_posterior_prior(name, code_name, *, h, w, inverse=False, a=3e-4):
     top3 = [np.empty_like(r) for r in ref]
     P._posterior(samples, white, black, scale, xtab, P._words(code, inverse), cand, searched, a, beta,
                  np.zeros(0, np.uint64), 1.0,
-                 True, 1, ptab, pu0, pdu, pw0, pdw, pout, use, *top3, np.empty((h, w)), np.empty((h, w)),
+                 True, 1, ptab, pu0, pdu, pw0, pdw, pout, use, edges, *top3, np.empty((h, w)), np.empty((h, w)),
                  np.empty((h, w)), np.empty((h, w), np.uint8), np.empty((h, w), np.float32))
     tails = int((ref[2] != top3[2]).sum())
     emit(name, ok and ok_due and all(close) and use and 0 < tails and same_misfit,

@@ -189,7 +189,7 @@ def test_lane_nll_equals_the_per_pixel_nll(name, inverse):
     output bit for bit as its per-pixel route (`_nll`, which reads `_xtab`), which the kernel
     takes for codes of more than two symbols; rows of a lane block with and without candidates."""
     import edge.decode.posterior as P
-    from edge.decode.level_prior import kernel_args
+    from edge.decode.level_prior import contrast_edges, kernel_args
     from edge.decode.synthetic import make_capture
 
     code = get_code(name)
@@ -209,7 +209,7 @@ def test_lane_nll_equals_the_per_pixel_nll(name, inverse):
         tail = P._flips(code)
         P._posterior(samples, cap.white, cap.black, np.float64(1 / 255), P._xtab(code, inverse),
                      P._words(code, inverse), cand, np.zeros((h, w, 3), np.float32), 4e-4, 0.002, tail.flips,
-                     float(tail.weight), binary, 1, *kernel_args(prior)[:7], *out)
+                     float(tail.weight), binary, 1, *kernel_args(prior)[:7], contrast_edges(prior), *out)
         outs.append(out)
     assert P._words(code, inverse)[1].any() == (samples.shape[0] > 64)
     for i, (a, b) in enumerate(zip(*outs)):

@@ -17,9 +17,12 @@ here from the module docstring (plain numpy / python, none of the module's helpe
   on the edges too, C_FLOOR exactly on a u-edge included;
 * `kernel_args`: the table, its geometry, the use flag and the table's least cost (the flat prior:
   not used);
-* `contrast_edges`: the tail's u-cell of a contrast (the count of edges at or below ``max(c,
-  C_FLOOR)``, less one) is the reference cell of u, exactly on the dyadic priors and up to
-  rounding at the edges on the real one;
+* `contrast_edges`: the u-cell of a contrast counted from the edges (the count of edges at or
+  below ``max(c, C_FLOOR)``, less one) is the reference cell of u, exactly on the dyadic priors
+  and up to rounding at the edges on the real one; and it is `cost_at`'s own cell everywhere,
+  on the edges and one double either side of each;
+* `costs_at` (the lane lookup that counts edges instead of taking a log): `cost_at` bit for bit
+  on every probe above, lane by lane;
 * levels whose w is not a number (an infinite off level) are off the grid: the `outside` cost.
 """
 
@@ -217,3 +220,78 @@ def test_levels_without_a_w_are_off_the_grid():
     for k in range(-8, 0):
         assert _reference_cost(*args[:6], math.inf, 10.0 ** k) == (prior.outside, None)
         assert cost_at(*args[:6], math.inf, 10.0 ** k) == prior.outside, k
+
+
+def _edge_probes(prior, rng):
+    """Levels whose contrast is every edge of `contrast_edges` and the doubles either side of it,
+    with offsets across the w-range, plus `_probes`."""
+    edges = contrast_edges(prior)
+    ce = edges[np.isfinite(edges)]
+    c = np.concatenate([ce, np.nextafter(ce, 0.0), np.nextafter(ce, np.inf)])
+    w = rng.uniform(0.0, 0.95, c.size)
+    b, c2 = _probes(prior, rng)
+    return np.r_[w * c / (1.0 - w), b], np.r_[c, c2]
+
+
+@pytest.mark.parametrize("seed", [1, 5])
+def test_edges_count_to_cost_at_cell_exactly(seed):
+    """The count of edges at or below ``max(c, C_FLOOR)``, less one, is `cost_at`'s u-cell
+    (``floor((log10 c' - u0) / du)``, computed as it is: numba's log10) on every probe, the
+    edges and their neighbouring doubles included: the edges are the cells' least contrasts."""
+    from numba import njit
+
+    @njit
+    def cells(c, u0, du):
+        out = np.empty(c.size)
+        for i in range(c.size):
+            cp = c[i] if c[i] > C_FLOOR else C_FLOOR
+            out[i] = np.floor((np.log10(cp) - u0) / du)
+        return out
+
+    prior = level_prior(*_sample(seed))
+    edges = contrast_edges(prior)
+    assert edges.shape == (GRID + 1,) and np.all(np.diff(edges) >= 0)  # cells below C_FLOOR: edges at it
+    _, c = _edge_probes(prior, np.random.default_rng(seed))
+    want = cells(c, prior.u0, prior.du)
+    counted = np.searchsorted(edges, np.maximum(c, C_FLOOR), side="right") - 1
+    inside = (want >= 0) & (want < GRID)
+    np.testing.assert_array_equal(counted[inside], want[inside])
+    assert np.all((counted[~inside] < 0) | (counted[~inside] >= GRID))
+    assert inside.sum() > 1000 and (~inside).sum() > 100
+
+
+@pytest.mark.parametrize("kind", ["real", "dyadic", "floor on an edge"])
+def test_lane_lookup_is_cost_at_bit_for_bit(kind):
+    """`costs_at` (16 lanes at a time, the posterior's) returns `cost_at`'s cost on every probe:
+    random levels, the u-edges and the doubles beside them, the w-edges, off the grid, negative
+    offsets, zero / negative / tiny / infinite contrast and an infinite offset."""
+    from numba import njit
+
+    from edge.decode.level_prior import costs_at
+
+    rng = np.random.default_rng(7)
+    if kind == "real":
+        prior = level_prior(*_sample(2))
+    else:
+        u0 = -3.0 if kind == "dyadic" else -8.0  # C_FLOOR = 1e-6 is u-edge 16 of the second
+        prior = LevelPrior(rng.uniform(0.0, 20.0, (GRID, GRID)), u0, 0.125, 0.0, 1.0 / 64.0, 50.0, 1000)
+    b, c = _edge_probes(prior, rng)
+    b, c = np.r_[b, np.inf, 0.1, 0.1], np.r_[c, 0.01, np.inf, -np.inf]
+    pad = (-b.size) % 16
+    b, c = np.r_[b, np.zeros(pad)], np.r_[c, np.ones(pad)]
+    args = kernel_args(prior)
+    edges = contrast_edges(prior)
+
+    @njit
+    def lanes(table, u0, du, edges, w0, dw, outside, b, c):
+        out = np.empty(b.size)
+        cp = np.empty(16)
+        iu = np.empty(16, np.int64)
+        for i in range(0, b.size, 16):
+            costs_at(table, u0, du, edges, w0, dw, outside, b[i:i + 16], c[i:i + 16], cp, iu, out[i:i + 16])
+        return out
+
+    got = lanes(args[0], args[1], args[2], edges, args[3], args[4], args[5], b, c)
+    want = np.array([cost_at(*args[:6], x, y) for x, y in zip(b.tolist(), c.tolist())])
+    np.testing.assert_array_equal(got, want)
+    assert (want != prior.outside).sum() > 500 and (want == prior.outside).sum() > 50

@@ -136,13 +136,48 @@ def kernel_args(prior: LevelPrior | None) -> tuple:
 
 
 def contrast_edges(prior: LevelPrior | None) -> np.ndarray:
-    """(GRID + 1,) float64 edges of the prior's u-cells as contrasts, ``10 ** (u0 + i du)``
-    ascending: the cell of contrast c is the number of edges <= c, less one (that of
-    ``log10 c`` to rounding at the edges; below the first edge off the grid).  (1,) [inf] for the
-    flat prior."""
+    """(rows + 1,) float64 edges of the prior's u-cells as contrasts, ascending: edge j is the least
+    double ``c' >= C_FLOOR`` whose u-cell in `cost_at` (``floor((log10 c' - u0) / du)``) is at
+    least j (inf where none is), found by bisection on the doubles with `cost_at`'s arithmetic.
+    So the u-cell of any contrast is the number of edges at or below ``c' = max(c, C_FLOOR)``,
+    less one (below 0 or from ``rows`` on: off the grid), exactly `cost_at`'s, with no log
+    (`costs_at`).  (1,) [inf] for the flat prior."""
     if prior is None:
         return np.full(1, np.inf)
-    return 10.0 ** (prior.u0 + prior.du * np.arange(prior.cost.shape[0] + 1, dtype=np.float64))
+    out = np.empty(prior.cost.shape[0] + 1, np.float64)
+    _cell_edges(float(prior.u0), float(prior.du), out)
+    return out
+
+
+@njit(cache=True, inline="always")
+def _u_cell(cp, u0, du):
+    """The u-cell of a contrast cp >= C_FLOOR as a float (floor of its grid coordinate): the one
+    place of this arithmetic, so that `contrast_edges` finds `cost_at`'s edges exactly."""
+    return np.floor((np.log10(cp) - u0) / du)
+
+
+@njit(cache=True)
+def _cell_edges(u0, du, out):
+    """`contrast_edges` into out (rows + 1,): per edge a bisection on the bit patterns of the
+    positive doubles (ordered as the doubles), invariant u-cell(lo) < j <= u-cell(hi)."""
+    bits = np.empty(3, np.float64)
+    view = bits.view(np.int64)
+    for j in range(out.size):
+        if _u_cell(C_FLOOR, u0, du) >= j:
+            out[j] = C_FLOOR
+            continue
+        bits[0] = C_FLOOR
+        bits[1] = np.inf  # u-cell inf: at least every j
+        lo = view[0]
+        hi = view[1]
+        while hi - lo > 1:
+            view[2] = lo + (hi - lo) // 2
+            if _u_cell(bits[2], u0, du) >= j:
+                hi = view[2]
+            else:
+                lo = view[2]
+        view[2] = hi
+        out[j] = bits[2]
 
 
 @njit(cache=True, inline="always")
@@ -150,8 +185,57 @@ def cost_at(table, u0, du, w0, dw, outside, b, c):
     """`prior_cost` of one pixel's levels (b, c) in a kernel (table = `LevelPrior.cost`)."""
     bp = b if b > 0.0 else 0.0
     cp = c if c > C_FLOOR else C_FLOOR
-    fu = np.floor((np.log10(cp) - u0) / du)
+    fu = _u_cell(cp, u0, du)
     fw = np.floor((bp / (bp + cp) - w0) / dw)
     if not (fu >= 0.0 and fu < table.shape[0] and fw >= 0.0 and fw < table.shape[1]):  # NaN (b = inf): off
         return outside
     return table[int(fu), int(fw)]
+
+
+#: log10(2), and a quadratic in the mantissa m in [1, 2) within 0.005 of log2(m): `costs_at`'s
+#: first guess of a contrast's cell (exact or next to it; the edges then settle it).
+_LOG10_2 = 0.30102999566398120
+_LOG2_QUAD = (-1.67487759, 2.02466578, -0.34484843)
+
+
+@njit(cache=True, inline="always")
+def costs_at(table, u0, du, edges, w0, dw, outside, b, c, cp, iu, out):
+    """`cost_at` of the levels (b[l], c[l]) of every lane l into out[l], bit for bit, without a
+    log: the u-cell is the number of `contrast_edges` ``edges`` at or below ``c' = max(c,
+    C_FLOOR)``, less one, found from a first guess (log2 c' from the exponent and a quadratic in
+    the mantissa, `_LOG2_QUAD`) moved edge by edge until it holds: exact whatever the guess.
+    b, c, out (L,) float64; scratch cp (L,) float64, iu (L,) int64, both C-contiguous."""
+    L = out.shape[0]
+    rows = table.shape[0]
+    cols = table.shape[1]
+    ne = edges.size
+    bits = cp.view(np.int64)
+    mant = iu.view(np.float64)
+    q0, q1, q2 = _LOG2_QUAD
+    for l in range(L):
+        cl = c[l]
+        cp[l] = cl if cl > C_FLOOR else C_FLOOR
+    for l in range(L):  # cp > 0: sign bit 0; its mantissa as a double in [1, 2)
+        iu[l] = (bits[l] & 0x000FFFFFFFFFFFFF) | 0x3FF0000000000000
+    for l in range(L):  # the guess of the count, in 0..ne (branch-free: it vectorises)
+        m = mant[l]
+        u = (np.float64((bits[l] >> 52) - 1023) + q0 + m * (q1 + m * q2)) * _LOG10_2
+        g = np.floor((u - u0) / du) + 1.0
+        iu[l] = np.int64(min(max(g, 0.0), np.float64(ne)))
+    for l in range(L):
+        x = cp[l]
+        k = iu[l]
+        while k > 0 and x < edges[k - 1]:
+            k -= 1
+        while k < ne and x >= edges[k]:
+            k += 1
+        iu[l] = k
+    for l in range(L):
+        bl = b[l]
+        bp = bl if bl > 0.0 else 0.0
+        fw = np.floor((bp / (bp + cp[l]) - w0) / dw)
+        fu = iu[l] - 1
+        if fu >= 0 and fu < rows and fw >= 0.0 and fw < cols:  # NaN w (b = inf): off
+            out[l] = table[fu, int(fw)]
+        else:
+            out[l] = outside

@@ -66,7 +66,9 @@ units squared.  Shapes: frames (n, H, W), white / black / outputs (H, W), candid
 Implementation (results do not depend on it): `_split_levels` and `_posterior` take `LANES`
 consecutive pixels of a row at a time with branch-free loops over the lanes; each pixel's sums
 still run over its samples in the order above with the same operations, so every value is the
-one-pixel-at-a-time value bit for bit.  A binary code's levels take two values, so the tail's
+one-pixel-at-a-time value bit for bit; the level prior's cell of a binary code's candidates is
+counted from its exact edges (`level_prior.costs_at`: `cost_at`'s cost, with no log).  A binary
+code's levels take two values, so the tail's
 flip costs take two logs per pixel.  The tail's words (`_tail_words`) are scored in branch-free
 passes over blocks of `TAIL_BLOCK` of a pixel's words at once (vectorised), with each word's two log-variances by a
 series about c1's (to 2e-11) and its prior cell by counting cell edges, and words whose odds are
@@ -90,7 +92,7 @@ from numba import get_num_threads, njit, prange
 from ..codes import Code
 from ..codes.words import pack_words
 from .kernels import BEYOND, sort_small
-from .level_prior import C_FLOOR, LevelPrior, contrast_edges, cost_at, kernel_args, level_prior
+from .level_prior import C_FLOOR, LevelPrior, contrast_edges, cost_at, costs_at, kernel_args, level_prior
 
 #: Smallest on - off contrast (normalised units) the split levels keep, so that the search
 #: kernels, which need white > black, decode every pixel.
@@ -809,7 +811,7 @@ def _interleaved(j, chunk, k):
 
 @njit(cache=True, parallel=True)
 def _posterior(frames, white, black, scale, xtab, words, cand, searched, a, beta, flips, tail_weight, binary,
-               threads, ptab, pu0, pdu, pw0, pdw, pout, use_prior, out_cand, out_dist, out_err, out_gain, out_conf,
+               threads, ptab, pu0, pdu, pw0, pdw, pout, use_prior, edges, out_cand, out_dist, out_err, out_gain, out_conf,
                out_contrast, out_far, out_every, out_lbest, out_tail, out_misfit):
     """Step 3 per pixel but the tail mass, LANES pixels of a row at a time: the hypotheses' NLLs
     lane-parallel (`_lane_nll`, `_lane_flat`; `_nll` per lane where the code is not binary), then
@@ -845,6 +847,8 @@ def _posterior(frames, white, black, scale, xtab, words, cand, searched, a, beta
         hp = np.empty((3, L), np.float64)
         hb = np.empty((3, L), np.float64)
         flat = np.empty(L, np.float64)
+        pc = np.empty(L, np.float64)
+        pi = np.empty(L, np.int64)
         lk = np.empty(3, np.float64)
         mk = np.empty(3, np.float64)
         ck = np.empty(3, np.float64)
@@ -876,8 +880,10 @@ def _posterior(frames, white, black, scale, xtab, words, cand, searched, a, beta
                         continue
                     if binary:
                         _lane_nll(R, sr, W, rows, k, n, words, a, beta, T, hl, hq, hc, hb)
-                        for l in range(L):  # hb: each lane's off level b of this candidate
-                            hp[k, l] = cost_at(ptab, pu0, pdu, pw0, pdw, pout, hb[k, l], hc[k, l]) if use_prior else 0.0
+                        if use_prior:  # hb / hc: each lane's off level b and contrast c of this candidate
+                            costs_at(ptab, pu0, pdu, edges, pw0, pdw, pout, hb[k], hc[k], pc, pi, hp[k])
+                        else:
+                            hp[k, :] = 0.0
                     else:
                         for l in range(L):
                             if scored[k, l]:
@@ -1177,8 +1183,8 @@ def _tail_words(m, columns, dn, ds, dq, n1, s1, q1, tot, sq, a, beta, vr0, vr1, 
       z**19 / 19)`` of ``2 atanh z``, ``z = (v - vr) / (v + vr)``, whose truncation error is
       below 2e-11 where ``|z| <= 1/3`` (the words refit variances near c1's); elsewhere the word
       is `_word_cost` exactly;
-    * its u-cell is the count of edges at or below its contrast, less one: the cell of
-      ``log10 c``, up to rounding at the edges.
+    * its u-cell is the count of edges at or below its contrast, less one: `cost_at`'s cell
+      exactly (the edges are `contrast_edges`'), found without a log.
     A block's words are scored in branch-free passes over all of them at once (vectorised), then
     one pass adds the prior cells and one sums the exponentials of the words within the skip;
     the sum runs over the words in order, whatever the blocks, so a sum that is not stopped does
@@ -1445,6 +1451,7 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
                 else np.ascontiguousarray(distances, np.float32))
     samples = _samples(frames, inverse)
     args = kernel_args(noise.levels)
+    edges = contrast_edges(noise.levels)
     threads = max(1, get_num_threads())
     due = np.empty((h, w), np.uint8)
     far = np.empty((h, w), np.float64)
@@ -1453,13 +1460,13 @@ def posterior(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale: f
     misfit = np.empty((h, w), np.float32)
     _posterior(samples, white, black, np.float64(scale), xtab, _words(code, has_inv), cand, searched, float(noise.a),
                float(noise.beta), tail.flips, float(tail.weight), bool(np.isin(xtab, (0.0, 1.0)).all()), threads,
-               *args[:7], out_cand, out_dist, competitors, gain, conf, contrast, far, every, lbest, due, misfit)
+               *args[:7], edges, out_cand, out_dist, competitors, gain, conf, contrast, far, every, lbest, due, misfit)
     fdr, idx = _not_lit_lookup(gain, code, choices, has_inv)
     if tail.flips.size:
         _tail_pass(samples, white, black, np.float64(scale), xtab, code.n, out_cand, due, far, every, lbest, idx, fdr,
                    float(noise.a), float(noise.beta), tail.packed, tail.flips, tail.columns, float(tail.weight),
                    int(tail.wlo), int(tail.whi), min(1.0, choices / code.size), threads, *args,
-                   contrast_edges(noise.levels), _skip_cost(tail.flips.size * tail.weight), competitors)
+                   edges, _skip_cost(tail.flips.size * tail.weight), competitors)
     err = np.empty((h, w), np.float32)
     _combine(idx, competitors, fdr, err)
     return Posterior(out_cand, out_dist, err, conf, contrast, noise, misfit)
