@@ -597,3 +597,28 @@ def test_stable_order_is_numpys_stable_argsort():
     y = rng.random(500).astype(np.float32)
     assert np.array_equal(stable_order(y), np.argsort(y, kind="stable"))
     assert stable_order(np.zeros(0)).shape == (0,)
+
+
+def test_bin_medians_are_numpys():
+    """`posterior._bin_medians` (the noise fit's binned medians) gives, bin for bin, what
+    ``np.array_split`` into NOISE_BINS slices and ``np.median`` of each give: sizes below, at and
+    above the bin count, bins under the least size left out, odd and even bin sizes, ties."""
+    from edge.decode.posterior import NOISE_BINS, _bin_medians
+
+    rng = np.random.default_rng(5)
+    for trial, n in enumerate([0, 5, 16, 17, 319, 320, 321, 333, 1000, 40000]):
+        mu = np.sort(rng.random(n))
+        s2 = rng.gamma(2.0, 1e-4, n)
+        if trial % 2:
+            mu = np.round(mu, 2)  # ties of the level
+            s2[: n // 3] = 1e-4  # ties of the variance
+        xs, ys, ws = [], [], []
+        for chunk in np.array_split(np.arange(n), NOISE_BINS):
+            if chunk.size >= 20:
+                lo, hi = int(chunk[0]), int(chunk[-1]) + 1
+                xs.append(float(np.median(mu[lo:hi])))
+                ys.append(float(np.median(s2[lo:hi])))
+                ws.append(float(hi - lo))
+        got = _bin_medians(mu, s2, NOISE_BINS, 20)
+        for g, want in zip(got, (xs, ys, ws)):
+            assert g.dtype == np.float64 and np.array_equal(g, np.array(want, np.float64)), (n, g, want)

@@ -595,6 +595,32 @@ def _level_order(s2: np.ndarray, mu: np.ndarray) -> np.ndarray:
     return ok[stable_order(mu[ok])]
 
 
+@njit(cache=True)
+def _bin_medians(muv, s2v, bins, least):
+    """(medians of muv, medians of s2v, pixels) (k,) float64 of the bins of ``np.array_split``
+    into ``bins`` consecutive slices that hold at least ``least`` pixels.  muv (N,) float64
+    ascending: its median is read off the middle; s2v (N,) float64 finite.  A median is the middle
+    value, or the mean of the middle two, whatever the selection algorithm: numpy's bit for bit."""
+    size = muv.size
+    base, extra = size // bins, size % bins
+    xs = np.empty(bins, np.float64)
+    ys = np.empty(bins, np.float64)
+    ws = np.empty(bins, np.float64)
+    k = 0
+    lo = 0
+    for j in range(bins):
+        hi = lo + base + (1 if j < extra else 0)
+        count = hi - lo
+        if count >= least:
+            mid = lo + count // 2
+            xs[k] = muv[mid] if count % 2 else (muv[mid - 1] + muv[mid]) / 2.0
+            ys[k] = np.median(s2v[lo:hi])
+            ws[k] = count
+            k += 1
+        lo = hi
+    return xs[:k], ys[:k], ws[:k]
+
+
 def _binned_fit(muv: np.ndarray, s2v: np.ndarray, frames: np.ndarray, scale: float,
                 prior: tuple[float, float]) -> Noise:
     """`_noise_from`'s fit of the finite pixels' mean levels / residual variances, sorted by level
@@ -605,17 +631,11 @@ def _binned_fit(muv: np.ndarray, s2v: np.ndarray, frames: np.ndarray, scale: flo
     if muv.size < MIN_FIT_PIXELS:
         return prior_noise
     # NOISE_BINS equal-count bins of the mean level (its quantile bins), medians per slice
-    corr = _chi2_median_ratio(frames.shape[0])
-    xs, ys, ws = [], [], []
-    for chunk in np.array_split(np.arange(muv.size), NOISE_BINS):
-        if chunk.size >= 20:
-            lo, hi = int(chunk[0]), int(chunk[-1]) + 1
-            xs.append(float(np.median(muv[lo:hi])))
-            ys.append(float(np.median(s2v[lo:hi])) / corr)
-            ws.append(float(hi - lo))
-    if len(xs) < 2:
+    x, y, count = _bin_medians(np.ascontiguousarray(muv, np.float64), np.ascontiguousarray(s2v, np.float64),
+                               NOISE_BINS, 20)
+    y = y / _chi2_median_ratio(frames.shape[0])
+    if x.size < 2:
         return prior_noise
-    x, y, count = np.array(xs), np.array(ys), np.array(ws)
     if np.ptp(x) <= 1e-9:
         return Noise(max(float(np.median(y)), floor), 0.0, True, int(muv.size))
     # weighted least squares: a bin's median has a standard error proportional to the variance
