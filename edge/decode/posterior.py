@@ -122,9 +122,11 @@ FIT_ROUNDS = 2
 #: Largest log-odds exponent evaluated (exp(-x/2) below e**-350 is 0 in float64 anyway).
 _CLIP = 700.0
 #: Pixels of one row `_posterior` and `_split_levels` process together (consecutive x), a
-#: compile-time constant so that the loops over lanes vectorise.  Every lane's sums still run
-#: over its samples in order, so the results are those of one pixel at a time, bit for bit.
-LANES = 16
+#: compile-time constant.  64, as the search's `kernels.LANES`: LLVM vectorises loops of 64 over
+#: the lanes, where it unrolls loops of 16 into scalar code (`_split_levels` 2.7x and `_posterior`
+#: 1.8x slower at 16, `tools/bench_ab.py`).  Every lane's sums still run over its samples in
+#: order, so the results are those of one pixel at a time, bit for bit, whatever LANES is.
+LANES = 64
 
 
 class Noise(NamedTuple):
