@@ -198,6 +198,40 @@ def test_search_with_a_margin_locates_every_codeword_within_it(name, inverse):
     assert min(skipped.values()) > 0 and finished > 0  # the margin decided something (every code path ran)
 
 
+def test_lightest_floor_bounds_the_class_bound_from_below():
+    """`kernels.lanes._lightest_floor` (the margin test's first try, with no sort) is at most
+    `_class_bounds`' lb[0] on every lane, and equals w0 * min V where every V is >= 0; lanes with
+    a negative V get no bound.  So a block that is beyond the margin with the floors is beyond it
+    with the exact bounds, and the search's outputs cannot change (the test above)."""
+    from numba import njit
+
+    from edge.decode.kernels.lanes import _NO_BOUND, _class_bounds, _lightest_floor
+
+    @njit
+    def bounds(V, w):
+        n = V.shape[0]
+        lb = np.zeros((w.size + 1, LANES), np.int64)
+        floor = np.zeros((w.size + 1, LANES), np.int64)
+        _class_bounds(V, np.zeros_like(V), np.zeros(LANES, np.int64), lb, n, w, w.size)
+        _lightest_floor(V, n, np.int64(w[0]), floor)
+        return lb[0].copy(), floor[0].copy()
+
+    rng = np.random.default_rng(8)
+    for trial in range(200):
+        n = int(rng.integers(6, 40))
+        w = np.unique(rng.integers(1, n + 1, int(rng.integers(1, 5)))).astype(np.int64)
+        V = rng.integers(0, 500, (n, LANES)).astype(np.int32)
+        neg = rng.random(LANES) < 0.3
+        V[rng.integers(0, n, LANES)[neg], np.nonzero(neg)[0]] *= -1  # one negative V in some lanes
+        V[:, :4] = 0 if trial % 2 else 7  # ties
+        exact, floor = bounds(V, w)
+        assert (floor <= exact).all(), trial
+        plain = (V >= 0).all(axis=0)
+        np.testing.assert_array_equal(floor[plain], w[0] * V[:, plain].min(axis=0).astype(np.int64))
+        assert (floor[~plain] == -_NO_BOUND).all()
+        assert (~plain).any() and plain.any()
+
+
 @pytest.mark.parametrize("name", ["gray-10", "gray-6", "binary-10"])
 @pytest.mark.parametrize("inverse", [False, True])
 def test_lane_search_resolves_ties_at_cost_zero_exactly(name, inverse):

@@ -107,6 +107,38 @@ def _class_bounds(V, SV, run, lb, n, cls_weight, nclass):
             lb[c, l] = min(lb[c, l], lb[c + 1, l])
 
 
+@njit(cache=True, inline="always")
+def _lightest_floor(V, n, w0, lb):
+    """lb[0, l] = a lower bound of `_class_bounds`' lb[0, l] without sorting: ``w0 * min_i V[i, l]``
+    (w0 the lightest class's weight) where every V of lane l is >= 0 (then the sum of the t
+    smallest V does not decrease with t, so lb[0, l] is the sum of the w0 smallest), else
+    -`_NO_BOUND` (no bound)."""
+    for l in range(LANES):
+        lb[0, l] = _NO_BOUND
+    for i in range(n):
+        for l in range(LANES):
+            lb[0, l] = min(lb[0, l], np.int64(V[i, l]))
+    for l in range(LANES):
+        v = lb[0, l]
+        lb[0, l] = w0 * v if v >= 0 else -_NO_BOUND
+
+
+@njit(cache=True, inline="always")
+def _first_bounds(V, SV, run, lb, n, cls_weight, nclass, k1, base, active, x0, width, margin_q, margin, dmin,
+                  q_scale):
+    """The block's class bounds after D = 0 and whether every lane is beyond the margin with them
+    (`_block_beyond`: then no other codeword needs evaluating).  With a margin it first tries
+    `_lightest_floor` (a lane beyond the margin with a lower bound is beyond it with the exact
+    one): where that settles the block, lb[0] holds those floors, which is all a block beyond
+    the margin reads; otherwise lb is `_class_bounds`' and the test is made with it."""
+    if margin_q >= 0:
+        _lightest_floor(V, n, np.int64(cls_weight[0]), lb)
+        if _block_beyond(k1, base, lb, active, x0, width, margin_q, margin, dmin, q_scale):
+            return True
+    _class_bounds(V, SV, run, lb, n, cls_weight, nclass)
+    return _block_beyond(k1, base, lb, active, x0, width, margin_q, margin, dmin, q_scale)
+
+
 @njit(cache=True)
 def _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, nlanes, c_first, c_stop, nclass,
                  cls_weight, cls_start, cls_pstart, dpos, dcol):
@@ -324,9 +356,9 @@ def margin_block(Y, n, tables, active, lo, hi, dmin, q_scale, margin_q, margin, 
     _nearest(Y, n, tables.masks, tables.syn_col, tables.col_bit, tables.leader, tables.leader_col,
              tables.has_leader, sc.SYN, sc.COLH, sc.HM, sc.E, sc.colref, sc.V, sc.base)
     nclass = tables.cls_weight.shape[0]
-    _class_bounds(sc.V, sc.SV, sc.run, sc.lb, n, tables.cls_weight, nclass)
     _first_keys(sc.colref, sc.base, lo, hi, sc.k1)
-    if not _block_beyond(sc.k1, sc.base, sc.lb, active, x0, width, margin_q, margin, dmin, q_scale):
+    if not _first_bounds(sc.V, sc.SV, sc.run, sc.lb, n, tables.cls_weight, nclass, sc.k1, sc.base, active, x0,
+                         width, margin_q, margin, dmin, q_scale):
         return False
     L = LANES
     for l in range(L):
@@ -420,10 +452,10 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
         evaluated += nact
         cidx = 0  # the class bound of the codewords not evaluated
         if nclass > 0:
-            _class_bounds(V, SV, run, lb, n, cls_weight, nclass)
             # with a margin: the lightest class is skipped where every lane's best is already
             # the margin ahead of all other codewords
-            if _block_beyond(k1, base, lb, active, x0, width, margin_q, margin, dmin, q_scale):
+            if _first_bounds(V, SV, run, lb, n, cls_weight, nclass, k1, base, active, x0, width, margin_q, margin,
+                             dmin, q_scale):
                 blocks_margin += 1
             else:
                 evaluated += nact * _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, L, 0,
@@ -541,7 +573,8 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, model, tables, ban
     above it).  Its best is then exact, and so is every other slot whose cost is below the bound;
     a slot that is not holds `BEYOND_KEY` (row `BEYOND` = -2, distance inf: a codeword at least
     the margin behind, not located).  A block whose every lane is beyond the margin after
-    D = 0 skips the lightest class.  This is what a reader that ignores every candidate more than
+    D = 0 skips the lightest class (tried first with `_lightest_floor`'s bounds, which need no
+    sort, then with `_class_bounds`': `_first_bounds`).  This is what a reader that ignores every candidate more than
     ``margin`` behind the best needs (the error rule's posterior, `SKIP_MARGIN`), and in a
     high-SNR capture nearly every block skips its lightest class.  Slots within the margin, and
     the pending block's lanes, are exact top-3 as without a margin.
