@@ -63,8 +63,13 @@ def _overloads() -> dict:
 
     from numba.core.registry import CPUDispatcher
 
-    return {id(d): (d.py_func.__qualname__, frozenset(d.overloads)) for d in gc.get_objects()
-            if isinstance(d, CPUDispatcher)}
+    def dispatcher(obj) -> bool:
+        try:
+            return isinstance(obj, CPUDispatcher)
+        except ReferenceError:  # a weak proxy whose referent is gone (numba's, of a collected function)
+            return False
+
+    return {id(d): (d.py_func.__qualname__, frozenset(d.overloads)) for d in gc.get_objects() if dispatcher(d)}
 
 
 def test_warm_up_leaves_nothing_to_compile_for_the_first_stack():
