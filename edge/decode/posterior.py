@@ -359,20 +359,6 @@ def split_levels(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale
 
 
 @njit(cache=True, inline="always")
-def _row_block(frames, white, black, scale, yy, block):
-    """block (W, m) float64 = the m samples of every pixel of row yy, normalised (frames read a
-    row at a time: contiguous, where reading one pixel's samples strides by H * W)."""
-    n = frames.shape[0]
-    width = block.shape[0]
-    for i in range(n):
-        for xx in range(width):
-            block[xx, i] = frames[i, yy, xx] * scale
-    for xx in range(width):
-        block[xx, n] = white[yy, xx] * scale
-        block[xx, n + 1] = black[yy, xx] * scale
-
-
-@njit(cache=True, inline="always")
 def _ls_levels(m, sx, sxx, sxr, sr):
     """Least-squares (b, c) of r = b + c x from the sums over m samples of x, x**2, x r and r; c
     clamped at 0 (then b is the mean).  The one place of this arithmetic for the CPU kernels
@@ -410,11 +396,9 @@ def _fit_stats(frames, white, black, scale, xtab, best, step_y, step_x, out_s2, 
     n = frames.shape[0]
     m = n + 2
     rows, cols = out_s2.shape
-    width = frames.shape[2]
     for ry in prange(rows):
         yy = ry * step_y
-        block = np.empty((width, m), np.float64)
-        _row_block(frames, white, black, scale, yy, block)
+        buf = np.empty(m, np.float64)
         xs = np.empty(m, np.float64)
         for rx in range(cols):
             xx = rx * step_x
@@ -425,7 +409,7 @@ def _fit_stats(frames, white, black, scale, xtab, best, step_y, step_x, out_s2, 
                 out_b[ry, rx] = np.nan
                 out_c[ry, rx] = np.nan
                 continue
-            buf = block[xx]
+            _pixel_samples(frames, white, black, scale, yy, xx, buf)
             b, c = _fit(buf, xs, row, n, xtab)
             out_b[ry, rx] = b
             out_c[ry, rx] = c
@@ -703,7 +687,7 @@ def _nll(buf, xs, row, n, xtab, a, beta, use_row):
 @njit(cache=True, inline="always")
 def _pixel_samples(frames, white, black, scale, y, x, buf):
     """buf[:m] = the m normalised samples of pixel (y, x): code frames, white, black (the values
-    of `_lane_samples` and `_row_block`)."""
+    of `_lane_samples`)."""
     n = frames.shape[0]
     for i in range(n):
         buf[i] = frames[i, y, x] * scale
@@ -713,7 +697,7 @@ def _pixel_samples(frames, white, black, scale, y, x, buf):
 
 @njit(cache=True, inline="always")
 def _lane_samples(frames, white, black, scale, yy, x0, R):
-    """R (m, LANES) float64 = the m normalised samples (``float64(raw) * scale``, as `_row_block`)
+    """R (m, LANES) float64 = the m normalised samples (``float64(raw) * scale``, as `_pixel_samples`)
     of pixels x0 .. x0 + LANES - 1 of row yy; lanes past the row's end repeat its last pixel."""
     n, _, width = frames.shape
     L = R.shape[1]

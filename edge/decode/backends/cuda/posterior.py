@@ -3,7 +3,7 @@
 One thread per pixel (`fit_stats`: per pixel of the noise fit's subgrid), each the CPU kernel's
 arithmetic in the same order, every product through `cost.mul64` (no fused multiply-add).
 The samples of a pixel are its n code frames, then (with inverse frames) its n inverse frames,
-then white and black, each ``float64(raw) * scale`` (`posterior._row_block`).
+then white and black, each ``float64(raw) * scale`` (`posterior._pixel_samples`).
 
 * `normalise`: the search's float32 stack of ``levels="auto"``: ``float32(raw) * float32(scale)``
   of the code (and inverse) frames (`decoder._decode_error_rule`).
