@@ -62,10 +62,12 @@ def test_live_geometry_update_changes_published_depth():
     assert service.pipeline.geometry == new_geometry
 
 
-def _record_with_a_live_change(path, update, profile=None, **recording):
+def _record_with_a_live_change(path, update, profile=None, min_files=1, **recording):
     """Run the service (default: the test profile) with a recording; apply `update` after two depth
-    maps; stop five maps after the first one the new profile decoded.  Returns the results and
-    the recorded files."""
+    maps; stop five maps after the first one the new profile decoded, and not before the recorder
+    has opened ``min_files`` files (a rotating recording: how many stacks the recorder keeps up
+    with depends on the machine's load and the decoder's speed).  Returns the results and the
+    recorded files."""
     from edge.io.recording import RecordingThread
     from edge.sensors import open_sensor
 
@@ -78,7 +80,8 @@ def _record_with_a_live_change(path, update, profile=None, **recording):
     def tick(svc):
         if not changed and svc.results_seen >= 2:
             changed.append(svc.update_config(update))
-        elif changed and sum(r.profile == changed[0] for r in list(sink.results)) >= 5:
+        elif (changed and sum(r.profile == changed[0] for r in list(sink.results)) >= 5
+              and len(recorder.files) >= min_files):
             svc.stop()
 
     try:
@@ -122,7 +125,7 @@ def test_rotated_files_after_a_live_change_replay_on_their_own(tmp_path):
     from edge.io.replay import replay_recording
 
     results, files = _record_with_a_live_change(tmp_path / "rot.mcap", {"decoder": {"method": "median"}},
-                                                max_bytes=1_500_000)
+                                                min_files=3, max_bytes=1_500_000)
     assert len(files) >= 3, files
     stored = [RecordingReader(f).profile.decoder.method for f in files]
     assert stored[0] == "soft" and stored[-1] == "median", stored
