@@ -124,7 +124,7 @@ _CLIP = 700.0
 #: Pixels of one row `_posterior` and `_split_levels` process together (consecutive x), a
 #: compile-time constant.  64, as the search's `kernels.LANES`: LLVM vectorises loops of 64 over
 #: the lanes, where it unrolls loops of 16 into scalar code (`_split_levels` 2.7x and `_posterior`
-#: 1.8x slower at 16, `tools/bench_ab.py`).  Every lane's sums still run over its samples in
+#: 1.8x slower at 16, stage medians of `tools/profile_decode.py`).  Every lane's sums still run over its samples in
 #: order, so the results are those of one pixel at a time, bit for bit, whatever LANES is.
 LANES = 64
 
