@@ -93,6 +93,33 @@ def test_threshold_is_the_scaled_chi2_tail():
     assert MISFIT_LEVEL == 1e-6 and misfit_threshold(np.array([np.nan]), k + 2) == np.inf
 
 
+@pytest.mark.parametrize("shape", [(300, 400), (7, 9), (0, 5)])
+def test_check_fit_takes_misfit_thresholds_sample(shape):
+    """`check_fit`'s one-kernel sample of the published pixels (`_published_sample`) is
+    `misfit_threshold`'s over ``stat[published]`` exactly: the same threshold and P(wrong) as the
+    numpy form, with NaN statistics, unpublished pixels and more than SCALE_PIXELS published."""
+    from types import SimpleNamespace
+
+    from edge.decode import misfit as M
+
+    stack = SimpleNamespace(frames=np.zeros((20, 1, 1)), inverse=None)  # m = 22 samples per pixel
+    rng = np.random.default_rng(3)
+    stat = rng.chisquare(20, shape).astype(np.float32)
+    stat[rng.random(shape) < 0.05] = np.nan
+    column0 = np.where(rng.random(shape) < 0.1, -1, rng.integers(0, 1024, shape)).astype(np.int32)
+    error = (rng.random(shape) ** 4).astype(np.float32)
+    target = 0.01 if shape[0] < 100 else 0.5
+    published = (column0 >= 0) & (error < np.float32(target))
+    if shape == (300, 400):
+        assert np.isfinite(stat[published]).sum() > M.SCALE_PIXELS  # the subsample is taken
+    seen, threshold = M.check_fit(stack, None, (1e-4, 1e-3), column0, error, target, stat)
+    want = misfit_threshold(stat[published], 22)
+    assert threshold == want or (np.isinf(threshold) and np.isinf(want))
+    with np.errstate(invalid="ignore"):
+        assert np.array_equal(seen, np.where(stat > want, np.float32(1.0), error))
+    assert seen.dtype == np.float32
+
+
 @pytest.mark.parametrize("gen", ["edge.sim", "plane-box-sphere"])
 @pytest.mark.parametrize("name", ["gray-10", "ecc-22-10"])
 def test_surfaces_outside_the_band_are_not_published(gen, name):

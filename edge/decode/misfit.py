@@ -242,15 +242,52 @@ def _chi2_quantile(k: int, p: float) -> float:
 def misfit_threshold(stat: np.ndarray, m: int) -> float:
     """``s * q`` of the module docstring from the statistics ``stat`` of the pixels the scale is
     taken over (any shape; NaN left out) of m samples per pixel; inf where there are none."""
-    k = max(1, m - 2)
     finite = np.asarray(stat, np.float64)
     finite = finite[np.isfinite(finite)]
-    if finite.size == 0:
-        return float("inf")
     if finite.size > SCALE_PIXELS:  # a regular subsample: the median needs thousands, not millions
         finite = finite[:: -(-finite.size // SCALE_PIXELS)]
-    s = min(float(np.median(finite)) / _chi2_quantile(k, 0.5), MAX_SCALE)
+    return _threshold_of(finite, m)
+
+
+def _threshold_of(sample: np.ndarray, m: int) -> float:
+    """`misfit_threshold` of its subsample of finite statistics (float64, 1-d): ``s * q``, inf
+    where it is empty."""
+    if sample.size == 0:
+        return float("inf")
+    k = max(1, m - 2)
+    s = min(float(np.median(sample)) / _chi2_quantile(k, 0.5), MAX_SCALE)
     return s * _chi2_quantile(k, 1.0 - MISFIT_LEVEL)
+
+
+@njit(cache=True)
+def _published_sample(stat, column0, error, max_error):
+    """What `misfit_threshold` takes the median of over the pixels the posterior alone would
+    publish, without the arrays in between: (k,) float64 the finite ``stat`` where ``column0 >=
+    0`` and ``error < max_error``, in row-major order, every step-th of them where there are
+    more than `SCALE_PIXELS` (step = ceil(count / SCALE_PIXELS), from the first): the same
+    values in the same order as ``stat[published]`` after `misfit_threshold`'s selection.
+    stat (H, W) float (float32 from the posteriors), column0 (H, W) int32, error (H, W) float,
+    max_error float32; two passes."""
+    height, width = stat.shape
+    count = 0
+    for yy in range(height):
+        for xx in range(width):
+            v = stat[yy, xx]
+            count += 1 if (column0[yy, xx] >= 0) & (error[yy, xx] < max_error) & np.isfinite(v) else 0
+    step = 1 if count <= SCALE_PIXELS else (count + SCALE_PIXELS - 1) // SCALE_PIXELS
+    out = np.empty((count + step - 1) // step, np.float64)
+    taken = 0
+    skip = 0  # the published finite statistics still to pass over before the next one taken
+    for yy in range(height):
+        for xx in range(width):
+            v = stat[yy, xx]
+            if column0[yy, xx] >= 0 and error[yy, xx] < max_error and np.isfinite(v):
+                if skip == 0:
+                    out[taken] = v
+                    taken += 1
+                    skip = step
+                skip -= 1
+    return out
 
 
 def check_fit(stack: CodedCapture, code: Code, noise: tuple[float, float], column0: np.ndarray, error: np.ndarray,
@@ -259,16 +296,19 @@ def check_fit(stack: CodedCapture, code: Code, noise: tuple[float, float], colum
     stack: the validated `CodedCapture`; column0 (H, W) int the best candidates (-1 = none; the
     CUDA backend's soft path passes its published columns only, which gives the same threshold
     and the same published pixels); error (H, W) float32 P(wrong) of column0; the scale is taken
-    over the pixels with ``error < max_error``.  stat: (H, W) float32 the statistic of the
+    over the pixels with ``error < max_error`` (`misfit_threshold`'s, its sample taken in one
+    kernel, `_published_sample`).  stat: (H, W) float32 the statistic of the
     posterior's best candidates (`edge.decode.posterior.Posterior.misfit`, which both backends'
     posterior kernels compute on the way), or None to compute it here from column0."""
     if stat is None:
         stat = statistic_of(stack, code, noise, column0)
-    published = (column0 >= 0) & (error < np.float32(max_error))
-    threshold = misfit_threshold(stat[published], samples_per_pixel(stack))
+    error = np.ascontiguousarray(error)  # (its dtype kept: compared with float32(max_error) as numpy does)
+    sample = _published_sample(np.ascontiguousarray(stat), np.ascontiguousarray(column0, np.int32),
+                               error, np.float32(max_error))
+    threshold = _threshold_of(sample, samples_per_pixel(stack))
     with np.errstate(invalid="ignore"):
         bad = stat > threshold
-    return np.where(bad, np.float32(1.0), error).astype(np.float32), threshold
+    return np.where(bad, np.float32(1.0), error).astype(np.float32, copy=False), threshold
 
 
 def fits(stack: CodedCapture, code: Code, noise: tuple[float, float], column: np.ndarray, threshold: float) -> np.ndarray:

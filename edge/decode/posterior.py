@@ -843,7 +843,7 @@ def _posterior(frames, white, black, scale, xtab, words, cand, searched, a, beta
         buf = np.empty(m, np.float64)
         xs = np.empty(m, np.float64)
         sr = np.empty(L, np.float64)
-        top = np.empty(L, np.float64)
+        full = np.empty(L, np.float64)
         rows = np.empty((3, L), np.int32)
         scored = np.empty((3, L), np.bool_)
         need = np.empty(3, np.bool_)
@@ -864,11 +864,14 @@ def _posterior(frames, white, black, scale, xtab, words, cand, searched, a, beta
             _lane_samples(frames, white, black, scale, yy, x0, R)
             for l in range(L):
                 sr[l] = 0.0
-                top[l] = R[0, l]
+                full[l] = 0.0
             for i in range(m):
                 for l in range(L):
-                    sr[l] += R[i, l]
-                    top[l] = max(top[l], R[i, l])
+                    v = R[i, l]
+                    sr[l] += v
+                    # a count of the samples at full scale (a select and an add vectorise; a
+                    # running max of the samples did not, and cost as much as the sums)
+                    full[l] += 1.0 if v >= FULL_SCALE_SAMPLE else 0.0
             any_scored = False
             for k in range(3):
                 need[k] = False
@@ -951,7 +954,7 @@ def _posterior(frames, white, black, scale, xtab, words, cand, searched, a, beta
                     out_misfit[yy, xx] = np.nan
                     out_tail[yy, xx] = 0
                     continue
-                out_misfit[yy, xx] = mk[0] if top[l] < FULL_SCALE_SAMPLE else np.nan
+                out_misfit[yy, xx] = mk[0] if full[l] == 0.0 else np.nan
                 out_gain[yy, xx] = flat[l] - plain
                 far = 0.0
                 every = 0.0
