@@ -870,7 +870,7 @@ def _posterior(frames, white, black, scale, xtab, words, cand, searched, a, beta
                     v = R[i, l]
                     sr[l] += v
                     # a count of the samples at full scale (a select and an add vectorise; a
-                    # running max of the samples did not, and cost as much as the sums)
+                    # running max of the samples does not)
                     full[l] += 1.0 if v >= FULL_SCALE_SAMPLE else 0.0
             any_scored = False
             for k in range(3):
