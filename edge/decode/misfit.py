@@ -244,9 +244,15 @@ def misfit_threshold(stat: np.ndarray, m: int) -> float:
     taken over (any shape; NaN left out) of m samples per pixel; inf where there are none."""
     finite = np.asarray(stat, np.float64)
     finite = finite[np.isfinite(finite)]
-    if finite.size > SCALE_PIXELS:  # a regular subsample: the median needs thousands, not millions
-        finite = finite[:: -(-finite.size // SCALE_PIXELS)]
-    return _threshold_of(finite, m)
+    # a regular subsample: the median needs thousands, not millions
+    return _threshold_of(finite[::_thinning(finite.size)], m)
+
+
+@njit(cache=True)
+def _thinning(count):
+    """The step of the regular subsample the scale's median is taken over: every pixel up to
+    `SCALE_PIXELS`, else every ceil(count / SCALE_PIXELS)-th, from the first (>= 1)."""
+    return 1 if count <= SCALE_PIXELS else (count + SCALE_PIXELS - 1) // SCALE_PIXELS
 
 
 def _threshold_of(sample: np.ndarray, m: int) -> float:
@@ -257,6 +263,12 @@ def _threshold_of(sample: np.ndarray, m: int) -> float:
     k = max(1, m - 2)
     s = min(float(np.median(sample)) / _chi2_quantile(k, 0.5), MAX_SCALE)
     return s * _chi2_quantile(k, 1.0 - MISFIT_LEVEL)
+
+
+@njit(cache=True, inline="always")
+def _published_finite(stat, column0, error, max_error, yy, xx):
+    """Pixel (yy, xx) is one the posterior alone would publish and its statistic is finite."""
+    return column0[yy, xx] >= 0 and error[yy, xx] < max_error and np.isfinite(stat[yy, xx])
 
 
 @njit(cache=True)
@@ -272,18 +284,16 @@ def _published_sample(stat, column0, error, max_error):
     count = 0
     for yy in range(height):
         for xx in range(width):
-            v = stat[yy, xx]
-            count += 1 if (column0[yy, xx] >= 0) & (error[yy, xx] < max_error) & np.isfinite(v) else 0
-    step = 1 if count <= SCALE_PIXELS else (count + SCALE_PIXELS - 1) // SCALE_PIXELS
+            count += 1 if _published_finite(stat, column0, error, max_error, yy, xx) else 0
+    step = _thinning(count)
     out = np.empty((count + step - 1) // step, np.float64)
     taken = 0
     skip = 0  # the published finite statistics still to pass over before the next one taken
     for yy in range(height):
         for xx in range(width):
-            v = stat[yy, xx]
-            if column0[yy, xx] >= 0 and error[yy, xx] < max_error and np.isfinite(v):
+            if _published_finite(stat, column0, error, max_error, yy, xx):
                 if skip == 0:
-                    out[taken] = v
+                    out[taken] = stat[yy, xx]
                     taken += 1
                     skip = step
                 skip -= 1
