@@ -37,6 +37,29 @@ SR, SS = 0.01, 0.03
 FIELDS = ("column", "confidence", "valid", "candidates", "distances")
 
 
+def yield_while_polled() -> None:
+    """Make the simulator's block loop hand the GIL to the threads it waits for.
+
+    Under the simulator every GPU thread is a Python thread, and `BlockManager.run` polls the
+    live ones (`is_alive`, non-blocking) in a loop that never sleeps, so it keeps the GIL from the
+    few threads still working: a block with one long pixel (a tail mass over hundreds of words)
+    ran about 20x slower than its own work.  Here a poll that finds its thread alive sleeps for
+    0 s, which releases the GIL to that work.  The kernels and their results are untouched;
+    raising the switch interval instead would slow every thread start in a busy block.
+    """
+    from numba.cuda.simulator import kernel as sim
+
+    polled = sim.BlockThread.is_alive
+
+    def is_alive(thread) -> bool:
+        if polled(thread):
+            time.sleep(0)
+            return True
+        return False
+
+    sim.BlockThread.is_alive = is_alive
+
+
 def emit(name: str, ok: bool, detail: str = "") -> None:
     print(json.dumps({"check": name, "ok": bool(ok), "detail": detail}), flush=True)
 
@@ -848,6 +871,8 @@ def check_service_staged(name):
 
 
 def main() -> int:
+    if gpu.SIM:
+        yield_while_polled()
     emit("resolve-auto", resolve("auto") == "cuda" and gpu.is_available(), resolve("auto"))
     s = (600, 700) if FULL else (2, 16)  # all-codeword searches
     b = (120, 160) if FULL else (3, 24)  # band searches, decode()
