@@ -32,8 +32,9 @@ def test_every_error_pattern_below_d_min_is_flagged():
     rng = np.random.default_rng(0)
     base = code.codebook[rng.integers(0, code.size, 64)]
     for weight in range(1, code.d_min):
-        patterns = np.array([np.isin(np.arange(code.n), c) for c in itertools.combinations(range(code.n), weight)],
-                            dtype=np.uint8)
+        ones = np.array(list(itertools.combinations(range(code.n), weight)))  # (C(n, weight), weight)
+        patterns = np.zeros((len(ones), code.n), np.uint8)
+        patterns[np.arange(len(ones))[:, None], ones] = 1
         if len(patterns) > 4000:
             patterns = patterns[rng.choice(len(patterns), 4000, replace=False)]
         words = base[np.arange(len(patterns)) % len(base)] ^ patterns
