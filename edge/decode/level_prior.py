@@ -149,7 +149,7 @@ def contrast_edges(prior: LevelPrior | None) -> np.ndarray:
     return out
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _u_cell(cp, u0, du):
     """The u-cell of a contrast cp >= C_FLOOR as a float (floor of its grid coordinate): the one
     place of this arithmetic, so that `contrast_edges` finds `cost_at`'s edges exactly."""
@@ -180,7 +180,7 @@ def _cell_edges(u0, du, out):
         out[j] = bits[2]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def cost_at(table, u0, du, w0, dw, outside, b, c):
     """`prior_cost` of one pixel's levels (b, c) in a kernel (table = `LevelPrior.cost`)."""
     bp = b if b > 0.0 else 0.0
@@ -198,7 +198,7 @@ _LOG10_2 = 0.30102999566398120
 _LOG2_QUAD = (-1.67487759, 2.02466578, -0.34484843)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def costs_at(table, u0, du, edges, w0, dw, outside, b, c, cp, iu, out):
     """`cost_at` of the levels (b[l], c[l]) of every lane l into out[l], bit for bit, without a
     log: the u-cell is the number of `contrast_edges` ``edges`` at or below ``c' = max(c,

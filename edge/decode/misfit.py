@@ -59,7 +59,7 @@ MAX_SCALE = 4.0
 SCALE_PIXELS = 40000
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _row_sums(frames, white, yy, scale):
     """Row yy's running sums of the least-squares fit before its code samples, (width,) float64
     each: (sx, sxx, sxr, sr, top) with white's sample (x = 1) in sx, sxx and sxr, sr = 0 (white
@@ -76,7 +76,7 @@ def _row_sums(frames, white, yy, scale):
     return sx, sxx, sxr, sr, top
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _add_sample(xx, r, x, sx, sxx, sxr, sr, top):
     """Pixel xx's running sums of the fit gain one code sample r of symbol x (and ``top`` its max)."""
     sx[xx] += x
@@ -86,7 +86,7 @@ def _add_sample(xx, r, x, sx, sxx, sxr, sr, top):
     top[xx] = max(top[xx], r)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _row_levels(white, black, yy, scale, m, a, beta, sx, sxx, sxr, sr, top):
     """Row yy's pixels (width = len(sx)) after the code samples' sums: black and white added to
     the plain sum and ``top``; returns (bb, cc, r0, r1), (width,) float64 each: the least-squares
@@ -111,7 +111,7 @@ def _row_levels(white, black, yy, scale, m, a, beta, sx, sxx, sxr, sr, top):
     return bb, cc, r0, r1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _row_finish(white, black, best, yy, scale, bb, cc, r0, r1, top, acc, out):
     """Row yy's statistics: white's and black's residuals added to the code samples' ``acc``, NaN
     where there is no candidate or a sample is at full scale (the linear model cannot be tested)."""
@@ -265,7 +265,7 @@ def _threshold_of(sample: np.ndarray, m: int) -> float:
     return s * _chi2_quantile(k, 1.0 - MISFIT_LEVEL)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _published_finite(stat, column0, error, max_error, yy, xx):
     """Pixel (yy, xx) is one the posterior alone would publish and its statistic is finite."""
     return column0[yy, xx] >= 0 and error[yy, xx] < max_error and np.isfinite(stat[yy, xx])

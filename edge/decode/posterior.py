@@ -182,7 +182,7 @@ class TailTables(NamedTuple):
     whi: int  #: the largest weight sampled
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _clipped(buf, m):
     """Whether any of the m normalised samples sits at 0 or at full scale (`FULL_SCALE_SAMPLE`):
     its residual is censored, so the pixel is left out of the noise fit."""
@@ -192,7 +192,7 @@ def _clipped(buf, m):
     return False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _above(buf, m, t):
     """(sum, count) of the first m samples of buf above t."""
     sh = 0.0
@@ -204,7 +204,7 @@ def _above(buf, m, t):
     return sh, kh
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _lane_above(R, m, t, sh, kh):
     """`_above` of every lane: sh (LANES,) float64, kh (LANES,) int64 = (sum, count) of lane l's
     m samples above t[l], summed in the samples' order (adding 0.0 for a sample at or below the
@@ -358,7 +358,7 @@ def split_levels(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale
     return hi, lo, _noise_from(s2, mu, frames, scale, prior)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _ls_levels(m, sx, sxx, sxr, sr):
     """Least-squares (b, c) of r = b + c x from the sums over m samples of x, x**2, x r and r; c
     clamped at 0 (then b is the mean).  The one place of this arithmetic for the CPU kernels
@@ -370,7 +370,7 @@ def _ls_levels(m, sx, sxx, sxr, sr):
     return (sr - c * sx) / m, c
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _fit(buf, xs, row, n, xtab):
     """Least-squares (b, c) of r = b + c x over the m samples for codebook row `row`."""
     m = n + 2
@@ -639,7 +639,7 @@ def _binned_fit(muv: np.ndarray, s2v: np.ndarray, frames: np.ndarray, scale: flo
     return Noise(max(float(a), floor), float(beta), True, int(muv.size))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _nll(buf, xs, row, n, xtab, a, beta, use_row):
     """(L, Mahalanobis part, contrast, off level) of one hypothesis: codebook row `row` (use_row)
     or one flat level (not use_row)."""
@@ -684,7 +684,7 @@ def _nll(buf, xs, row, n, xtab, a, beta, use_row):
     return total, maha, c, b
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _pixel_samples(frames, white, black, scale, y, x, buf):
     """buf[:m] = the m normalised samples of pixel (y, x): code frames, white, black (the values
     of `_lane_samples`)."""
@@ -695,7 +695,7 @@ def _pixel_samples(frames, white, black, scale, y, x, buf):
     buf[n + 1] = black[y, x] * scale
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _lane_samples(frames, white, black, scale, yy, x0, R):
     """R (m, LANES) float64 = the m normalised samples (``float64(raw) * scale``, as `_pixel_samples`)
     of pixels x0 .. x0 + LANES - 1 of row yy; lanes past the row's end repeat its last pixel."""
@@ -720,7 +720,7 @@ def _lane_samples(frames, white, black, scale, yy, x0, R):
             R[n + 1, l] = black[yy, xx] * scale
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _lane_nll(R, sr, W, rows, k, n, words, a, beta, T, out_l, out_q, out_c, out_b):
     """`_nll` of codebook row ``rows[k, l]`` (>= 0) of every lane of a binary code (symbols 0 /
     1), lane-parallel, into row k of out_l / out_q / out_c / out_b (3, LANES) (L, Mahalanobis
@@ -785,7 +785,7 @@ def _lane_nll(R, sr, W, rows, k, n, words, a, beta, T, out_l, out_q, out_c, out_
         out_q[k, l] += q
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _lane_flat(R, sr, n, a, beta, S, out_l):
     """`_nll`'s flat hypothesis (one level, the mean) of every lane, lane-parallel (its values bit
     for bit; sr as in `_lane_nll`; scratch S (9, LANES))."""
@@ -807,7 +807,7 @@ def _lane_flat(R, sr, n, a, beta, S, out_l):
             out_l[l] += e * e * r0[l] + l0[l]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _interleaved(j, chunk, k):
     """Row of iteration j of a parallel loop over ``chunk * k`` iterations on k threads: a
     thread's contiguous share of iterations (about ``chunk``) gets every k-th row, so rows of
@@ -1029,7 +1029,7 @@ def _tail_pass(frames, white, black, scale, xtab, nbits, cand, tail, far, every,
             out_err[yy, xx] = f / (1.0 + e)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _refit(m, n1, tot, s1, sq, q1, a, beta):
     """A binary codeword's least-squares levels and residuals from its sample sums (see
     `_word_cost`): (b, c, n0, v0, v1, ss0, ss1), b the off level, c >= 0 the contrast, n0 = m -
@@ -1063,7 +1063,7 @@ def _word_cost(m, n1, tot, s1, sq, q1, a, beta, ptab, pu0, pdu, pw0, pdw, pout, 
     return cost
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _tail_mass(buf, xs, rk, lbest, count, n, nbits, xtab, a, beta, packed, flips, columns, weight, wlo, whi, prior,
                skip, enough, dn, ds, dq, delta, sorted_d, work):
     """Sum of exp(-(P_c - lbest) / 2) over the codewords c = c1 xor h, h a codeword of weight
@@ -1298,7 +1298,7 @@ def _tail_words(m, columns, dn, ds, dq, n1, s1, q1, tot, sq, a, beta, vr0, vr1, 
     return total
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _atanh2(z):
     """2 atanh z = ln((1 + z) / (1 - z)) by its series to z**19 (|z| <= 1/3: error below 2e-11)."""
     z2 = z * z

@@ -66,7 +66,7 @@ class Propagated(NamedTuple):
     extra: np.ndarray
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _visit(frames, white, black, scale, xtab, cand, dist, a, beta, prior, bound, rows, y, x, c,
            track, track_l, extra, extra_l, buf, xs):
     """One visit of uncertain pixel (y, x) with its previous pixel's track c (module docstring)."""

@@ -151,7 +151,7 @@ def penalties(choices: int, *, p_edge: float = P_EDGE, f_steep: float = F_STEEP)
                  none_none=math.log(near / (1.0 - p_edge / 2.0)), col_prior=log_n)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _advance(disp, unary, y, x, dprev, prev, cur, pr, top):
     """One recurrence step of the module docstring: cur (the K + 1 costs of pixel (y, x)) from
     prev, the previous pixel's, whose candidates' disparities (rows) are dprev.  pr: (p1, p2,
@@ -179,7 +179,7 @@ def _advance(disp, unary, y, x, dprev, prev, cur, pr, top):
     cur[kk] = unary[y, x, kk] + (best - mprev)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _begin(unary, y, x, col_prior, cur):
     """First pixel of a scan line: L = U + the node prior (col_prior on the column states)."""
     ns = cur.shape[0]

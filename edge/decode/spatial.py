@@ -51,7 +51,7 @@ from .settings import DecodeSettings
 from .sgm import from_search as sgm_from_search
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _nearest_marked(marked, prev_out, next_out):
     """For every x of a row: the nearest marked x strictly left (prev_out) and right (next_out), -1 if none."""
     width = marked.size
@@ -67,7 +67,7 @@ def _nearest_marked(marked, prev_out, next_out):
             last = xx
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _median_sorted(buf, m):
     _sort_small(buf, m)
     if m % 2 == 1:
@@ -75,7 +75,7 @@ def _median_sorted(buf, m):
     return (buf[m // 2 - 1] + buf[m // 2]) // 2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _median_float(buf, m):
     _sort_small(buf, m)
     if m % 2 == 1:
@@ -83,7 +83,7 @@ def _median_float(buf, m):
     return 0.5 * (buf[m // 2 - 1] + buf[m // 2])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _same_surface(x1, c1, x2, c2, stripe, max_slope, tol):
     d1 = x1 - c1 * stripe
     d2 = x2 - c2 * stripe
@@ -320,7 +320,7 @@ _LO_SHIFT = 10
 _HI_SHIFT = 20
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _straddle_sum(vcol, c, yy, xx, radius, tol, nlo_is_p, nhi_is_p):
     """da + db of the middle voter pair of pixel (yy, xx) when one side holds half the voters:
     the extreme values next to that side (see `_support`)."""

@@ -93,7 +93,7 @@ def nearest_codewords_distance(words: np.ndarray, codewords: np.ndarray):
     return out, dist
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _supported(ref: np.ndarray, y: int, x: int, c: int, tolerance: int) -> bool:
     """Column ``c`` at pixel (y, x) is supported by the column map ``ref`` (-1 = none): some
     neighbour at dx = +-1 (dy in -1..1) has a column within ``tolerance``, or, when none of those

@@ -48,7 +48,7 @@ def _key64(key32, s, cmin):
     return ((np.int64(key32) >> s) << IDX_BITS) | (cmin + (np.int64(key32) & ((1 << s) - 1)))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _key32(zv, wl, zcap, mult, rc):
     """32-bit top-3 key of `soft_band_fold`: min(z, zcap) * mult | rc with z = zv + wl = 2 cost
     (int32 throughout, so the lane loops stay 8 x int32 wide)."""

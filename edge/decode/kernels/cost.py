@@ -62,7 +62,7 @@ _U1 = np.uint64(1)
 _U0 = np.uint64(0)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _pixel_params(a, b, has_inv, metric, sr2, ss2):
     """Per-pixel constants of `_sample_costs`: (1/v_white, 1/v_black, log terms la, lb,
     1/(v_white + v_black), 1/(white - black)); reciprocals so the per-sample work has no
@@ -80,7 +80,7 @@ def _pixel_params(a, b, has_inv, metric, sr2, ss2):
     return 1.0 / va, 1.0 / vb, la, lb, 1.0 / (va + vb), 1.0 / (a - b)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _pixel_params_tab(a, b, log_va, log_vb, sr2, ss2):
     """`_pixel_params` for METRIC_ML without inverse frames with the two logs given (from
     `log_levels`): the same values, bit for bit."""
@@ -102,7 +102,7 @@ def log_levels(levels, scale, sr2, ss2):
     return out
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _sample_costs(r, ri, a, b, has_inv, metric, iva, ivb, la, lb, ivs, idiff):
     """(e0, e1) of one binary sample (see module docstring); constants from `_pixel_params`."""
     d = a - b
@@ -131,7 +131,7 @@ def _sample_costs(r, ri, a, b, has_inv, metric, iva, ivb, la, lb, ivs, idiff):
     return e0, e1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _quantise(e0, e1, q_scale):
     """round(q_scale * (e0 - e1)) clipped to [-Y_CLIP, Y_CLIP], as int64 (clipped as a float)."""
     t = np.round((e0 - e1) * q_scale)
@@ -139,7 +139,7 @@ def _quantise(e0, e1, q_scale):
     return np.int64(t)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _pixel_llr(frames, inverse, has_inv, yy, xx, n, scale, a, b, metric, sr2, ss2, q_scale, y, w):
     """Fill y (quantised e0 - e1) and w = |y| for one pixel; return (hard mask h, dmin)."""
     iva, ivb, la, lb, ivs, idiff = _pixel_params(a, b, has_inv, metric, sr2, ss2)
@@ -162,7 +162,7 @@ def _pixel_llr(frames, inverse, has_inv, yy, xx, n, scale, a, b, metric, sr2, ss
     return h, dmin
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _block_llr(frames, inverse, has_inv, white, black, scale, metric, sr2, ss2, q_scale, ltab, yy,
                x0, use_band, min_d, max_d, stripe, ncols, R, RI, PA, Y, dmin, active, lo, hi):
     """Quantised cost differences of the LANES pixels x0.. of row yy, lane-parallel.

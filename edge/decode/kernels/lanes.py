@@ -26,7 +26,7 @@ from .top3 import BEYOND_KEY, IDX_BITS, NO_KEY, _write, _write_none
 _NO_BOUND = np.int64(1) << np.int64(62)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, e_start, e_stop, p_start, t):
     """Top-3 update of LANES lanes with every codeword c_ref ^ D, D in dcol[e_start:e_stop].
 
@@ -76,7 +76,7 @@ def _eval_class(V, base, colref, lo, hi, k1, k2, k3, acc, dpos, dcol, e_start, e
             k3[l] = min(k3[l], key)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _class_bounds(V, SV, run, lb, n, cls_weight, nclass):
     """lb[c, l] = min over classes c' >= c of (sum of the cls_weight[c'] smallest V of
     lane l): a lower bound of cost - base for every codeword c_ref ^ D, |D| >= cls_weight[c].
@@ -107,7 +107,7 @@ def _class_bounds(V, SV, run, lb, n, cls_weight, nclass):
             lb[c, l] = min(lb[c, l], lb[c + 1, l])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _lightest_floor(V, n, w0, lb):
     """lb[0, l] = a lower bound of `_class_bounds`' lb[0, l] without sorting: ``w0 * min_i V[i, l]``
     (w0 the lightest class's weight) where every V of lane l is >= 0 (then the sum of the t
@@ -123,7 +123,7 @@ def _lightest_floor(V, n, w0, lb):
         lb[0, l] = w0 * v if v >= 0 else -_NO_BOUND
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _first_bounds(V, SV, run, lb, n, cls_weight, nclass, k1, base, active, x0, width, margin_q, margin, dmin,
                   q_scale):
     """The block's class bounds after D = 0 and whether every lane is beyond the margin with them
@@ -143,8 +143,7 @@ def _first_bounds(V, SV, run, lb, n, cls_weight, nclass, k1, base, active, x0, w
 def _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, nlanes, c_first, c_stop, nclass,
                  cls_weight, cls_start, cls_pstart, dpos, dcol):
     """Evaluate classes c_first, c_first + 1, ... (before c_stop) for a whole lane block, until
-    the bounds lb prove the top-3 of lanes 0..nlanes-1; return the codeword evaluations per lane.
-    (Not inlined: one compiled copy of the class loop serves both stages.)"""
+    the bounds lb prove the top-3 of lanes 0..nlanes-1; return the codeword evaluations per lane."""
     evaluated = 0
     c = c_first
     while c < c_stop:
@@ -163,7 +162,7 @@ def _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, nlanes, c_first, 
     return evaluated
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _zero_set_top3(V, l, n, colref, col_bit, basis, leads, keys):
     """Exact top-3 keys of lane l of a full-space code (every n-bit word a codeword: all V >= 0,
     base 0) whose V has at least two zeros; False (keys untouched) otherwise.
@@ -217,7 +216,7 @@ def _zero_set_top3(V, l, n, colref, col_bit, basis, leads, keys):
     return True
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _beyond(k1, bound, margin_q, margin, dmin, q_scale):
     """Whether every codeword of cost >= ``bound`` lies beyond the margin of the best key k1: its
     cost at least ``margin_q`` more (quantised units, ``margin_q >= 0``), and its distance's
@@ -234,7 +233,7 @@ def _beyond(k1, bound, margin_q, margin, dmin, q_scale):
     return db - d1 > margin
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _located(key, bound):
     """A top-3 key as `_write` takes it where codewords of cost >= ``bound`` were not evaluated:
     the key where its cost is below the bound (then it is exact), else `BEYOND_KEY` (NO_KEY kept
@@ -244,7 +243,7 @@ def _located(key, bound):
     return BEYOND_KEY
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _beyond_keys(k1, k2, k3, bound, lo, hi):
     """(k2, k3) of a lane finished by the margin: `_located`, and an empty slot that a column of
     the lane's range [lo, hi] would fill (the range holds 2 or 3 or more columns) becomes
@@ -258,7 +257,7 @@ def _beyond_keys(k1, k2, k3, bound, lo, hi):
     return b2, b3
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _nearest(Y, n, masks, syn_col, col_bit, leader, leader_col, has_leader, SYN, COLH, HM, E, colref, V, base):
     """Per lane, from the quantised cost differences Y (n, LANES): c_ref (its column in colref,
     the flips from h in E), base = cost(c_ref) and V (n, LANES) (`soft_lanes`).  Scratch SYN,
@@ -295,7 +294,7 @@ def _nearest(Y, n, masks, syn_col, col_bit, leader, leader_col, has_leader, SYN,
             base[l] += wv * np.int32(bit)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _first_keys(colref, base, lo, hi, k1):
     """k1 (LANES,) = each lane's key of c_ref (cost base), NO_KEY where its column is outside the
     lane's range [lo, hi] (the search's first candidate, D = 0)."""
@@ -305,7 +304,7 @@ def _first_keys(colref, base, lo, hi, k1):
         k1[l] = ((np.int64(base[l]) << IDX_BITS) | np.int64(cr)) if ok else NO_KEY
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _block_beyond(k1, base, lb, active, x0, width, margin_q, margin, dmin, q_scale):
     """Whether every active lane of the block (inside the image) is `_beyond` the margin with the
     lightest class's bound ``base + lb[0]``: then no codeword but c_ref needs evaluating."""
@@ -332,7 +331,7 @@ class MarginScratch(NamedTuple):
     k1: np.ndarray
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def margin_scratch(n, nclass):
     """A `MarginScratch` for codes of n positions and nclass weight classes."""
     L = LANES
@@ -342,7 +341,7 @@ def margin_scratch(n, nclass):
                          np.zeros(L, np.int64), np.zeros(L, np.int64))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def margin_block(Y, n, tables, active, lo, hi, dmin, q_scale, margin_q, margin, x0, width, sc,
                  out_col, out_dist, out_conf, yy):
     """A block of LANES pixels whose every active lane is beyond the margin after D = 0 (the

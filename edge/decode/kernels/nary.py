@@ -9,7 +9,7 @@ from .cost import METRIC_HARD, METRIC_ML, Y_CLIP
 from .top3 import IDX_BITS, NO_KEY, _insert, _pixel_start, _write, _write_none
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _nary_lmin(a, b, has_inv, q, sr2, ss2):
     """The smallest ``log(var)`` of a pixel's q symbol levels (white a, black b normalised):
     the per-pixel constant `soft_nary`'s ML costs leave out (distances are -2 log-likelihoods

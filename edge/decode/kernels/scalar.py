@@ -33,7 +33,7 @@ _U63 = np.uint64(63)
 _U255 = np.uint64(255)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _pack(m, comp, nbytes):
     out = np.int64(0)
     for g in range(nbytes):
@@ -41,7 +41,7 @@ def _pack(m, comp, nbytes):
     return out
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _subset_tables(v, n, ngroups, tab):
     """tab[g, p] = sum of v over the bits of p at positions 6g.. (v = 0 beyond n)."""
     for g in range(ngroups):
@@ -54,7 +54,7 @@ def _subset_tables(v, n, ngroups, tab):
                 tab[g, half | p] = tab[g, p] + val
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _cost_of(diff, tab, ngroups):
     s = tab[0, np.int64(diff & _U63)]
     for g in range(1, ngroups):

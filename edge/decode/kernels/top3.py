@@ -41,7 +41,7 @@ BEYOND_KEY = NO_KEY - np.int64(1)
 BEYOND = -2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _insert(key, k1, k2, k3):
     if key < k3:
         if key < k2:
@@ -56,7 +56,7 @@ def _insert(key, k1, k2, k3):
     return k1, k2, k3
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _band(x, use_band, min_d, max_d, stripe, ncols):
     """Candidate columns [lo, hi] of camera column x (empty when lo > hi)."""
     if not use_band:
@@ -70,7 +70,7 @@ def _band(x, use_band, min_d, max_d, stripe, ncols):
     return lo, hi
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _pixel_start(white, black, yy, xx, scale, use_band, min_d, max_d, stripe, ncols):
     """(a, b, lo, hi, ok) of pixel (yy, xx): normalised white / black levels, candidate columns
     [lo, hi] and whether it can be decoded (white > black and a non-empty band)."""
@@ -80,7 +80,7 @@ def _pixel_start(white, black, yy, xx, scale, use_band, min_d, max_d, stripe, nc
     return a, b, lo, hi, (a > b) and lo <= hi
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def sort_small(a, m):
     for i in range(1, m):
         t = a[i]
@@ -91,7 +91,7 @@ def sort_small(a, m):
         a[j + 1] = t
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _write(out_col, out_dist, out_conf, yy, xx, k1, k2, k3, dmin, q_scale, margin=np.inf):
     """One pixel's outputs from its three keys: rows (-1 empty, `BEYOND` not located), distances
     ``float32(dmin + cost / q_scale)`` (inf for both), confidence ``(d2 - d1) / d2`` (0 without a
@@ -119,7 +119,7 @@ def _write(out_col, out_dist, out_conf, yy, xx, k1, k2, k3, dmin, q_scale, margi
         out_conf[yy, xx] = np.float32((d2 - d1) / d2) if d2 > 0 else np.float32(0.0)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _write_none(out_col, out_dist, out_conf, yy, xx):
     for j in range(3):
         out_col[yy, xx, j] = -1

@@ -1,0 +1,171 @@
+"""First-call (compile) time of `decode()` with its defaults: this tree, or against a git revision.
+
+A fresh machine, a CI run and a first `edge run` compile every numba kernel they call; the
+test suite spends most of its cold run there.  This tool times that: each run is a fresh
+process with an empty numba cache (a temporary ``NUMBA_CACHE_DIR``) that decodes one small
+ecc-22-10 capture (`edge.decode.synthetic.make_capture`, uint8, seed 0) with `decode()`'s
+defaults, first cold (compile and decode), then warm (median of three).  It prints the seconds
+of the first call, the warm milliseconds and, per numba function, the seconds spent compiling
+it alone (numba's "numba:compile" events, the time of the functions it compiled on the way
+subtracted), most first.
+
+    python tools/bench_compile.py                      # this tree, one run
+    python tools/bench_compile.py --rev HEAD~1 --rounds 2
+
+With ``--rev`` side A is the revision (a temporary git worktree) and side B this tree, run in
+alternating order; the report gives each side's median over rounds and B / A.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parents[1]
+
+
+class CompileTimes:
+    """Exclusive compile seconds per numba function, from numba's "numba:compile" events.
+
+    `seconds[name]` is the time between the start and end events of the compiles of `name`
+    (module-qualified), minus the time of the compiles nested inside them (the callees numba
+    compiled on the way); `compiles[name]` counts them (one per signature).  Records while
+    entered (``with CompileTimes() as times: ...``).
+    """
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+        self.compiles: dict[str, int] = {}
+        self._open: list[list[float]] = []  # [start, nested seconds] per compile in progress
+
+    def __enter__(self) -> CompileTimes:
+        from numba.core import event
+
+        recorder = self
+
+        class _Listener(event.Listener):
+            def on_start(self, ev) -> None:
+                recorder._open.append([time.perf_counter(), 0.0])
+
+            def on_end(self, ev) -> None:
+                recorder._end(ev.data.get("dispatcher"))
+
+        self._listener = _Listener()
+        event.register("numba:compile", self._listener)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        from numba.core import event
+
+        event.unregister("numba:compile", self._listener)
+
+    def _end(self, dispatcher) -> None:
+        start, nested = self._open.pop()
+        took = time.perf_counter() - start
+        if self._open:
+            self._open[-1][1] += took
+        fn = getattr(dispatcher, "py_func", None)
+        name = f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', dispatcher)}"
+        self.seconds[name] = self.seconds.get(name, 0.0) + took - nested
+        self.compiles[name] = self.compiles.get(name, 0) + 1
+
+
+def child(height: int, width: int) -> dict:
+    """One cold run in this process (the caller gives it an empty cache): the first call's
+    seconds, the warm median in ms and the per-function compile seconds."""
+    import numpy as np
+
+    from edge.codes import get_code
+    from edge.decode import decode
+    from edge.decode.synthetic import make_capture
+
+    code = get_code("ecc-22-10")
+    rng = np.random.default_rng(0)
+    cap = make_capture(code, rng.integers(0, code.size, (height, width)), rng=rng)
+    with CompileTimes() as times:
+        t0 = time.perf_counter()
+        decode(cap.frames, cap.white, cap.black, code)
+        first = time.perf_counter() - t0
+    warm = []
+    for _ in range(3):
+        t0 = time.perf_counter()
+        decode(cap.frames, cap.white, cap.black, code)
+        warm.append(time.perf_counter() - t0)
+    return {"first_s": first, "warm_ms": statistics.median(warm) * 1e3, "seconds": times.seconds,
+            "compiles": times.compiles}
+
+
+def _run_side(root: Path, height: int, width: int) -> dict:
+    with tempfile.TemporaryDirectory(prefix="bench-compile-cache-") as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(root), MPLBACKEND="Agg")
+        cmd = [sys.executable, str(Path(__file__).resolve()), "--child", "--height", str(height), "--width",
+               str(width)]
+        proc = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise SystemExit(f"bench_compile: the run in {root} failed:\n{proc.stderr[-3000:]}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def _top(run: dict, count: int) -> list[str]:
+    rows = sorted(run["seconds"].items(), key=lambda kv: -kv[1])[:count]
+    return [f"  {s:7.1f} s  {run['compiles'][name]:2d} x  {name}" for name, s in rows]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rev", default=None, help="side A: a git revision to compare against (default: none, "
+                                                "this tree alone)")
+    ap.add_argument("--rounds", type=int, default=1, help="runs per side, alternating (default %(default)s)")
+    ap.add_argument("--height", type=int, default=120, help="capture rows (default %(default)s)")
+    ap.add_argument("--width", type=int, default=160, help="capture columns (default %(default)s)")
+    ap.add_argument("--top", type=int, default=12, help="functions listed per side (default %(default)s)")
+    ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.rounds < 1 or args.height < 1 or args.width < 1:
+        raise SystemExit("bench_compile: --rounds, --height and --width must be at least 1")
+    if args.child:
+        print(json.dumps(child(args.height, args.width)))
+        return 0
+    runs: dict[str, list[dict]] = {"A": [], "B": []}
+    with tempfile.TemporaryDirectory(prefix="bench-compile-") as tmp:
+        sides = {"B": HERE}
+        if args.rev is not None:
+            rev = subprocess.run(["git", "rev-parse", "--short", args.rev], cwd=HERE, capture_output=True, text=True)
+            if rev.returncode != 0:
+                raise SystemExit(f"bench_compile: --rev {args.rev!r} is not a revision of this repository")
+            sides["A"] = Path(tmp) / "a"
+            subprocess.run(["git", "worktree", "add", "--detach", "-q", str(sides["A"]), args.rev], cwd=HERE,
+                           check=True)
+            print(f"A = {rev.stdout.strip()} ({args.rev}), B = this working tree", flush=True)
+        try:
+            for r in range(args.rounds):
+                order = ("A", "B") if r % 2 == 0 else ("B", "A")
+                for side in (s for s in order if s in sides):
+                    runs[side].append(_run_side(sides[side], args.height, args.width))
+                    print(f"  round {r + 1}, {side}: first call {runs[side][-1]['first_s']:.1f} s, warm "
+                          f"{runs[side][-1]['warm_ms']:.1f} ms", flush=True)
+        finally:
+            if "A" in sides:
+                subprocess.run(["git", "worktree", "remove", "--force", str(sides["A"])], cwd=HERE, check=False)
+    print(f"decode() with its defaults, ecc-22-10 {args.height} x {args.width} uint8, empty numba cache:")
+    medians = {}
+    for side in (s for s in ("A", "B") if runs[s]):
+        medians[side] = statistics.median(x["first_s"] for x in runs[side])
+        warm = statistics.median(x["warm_ms"] for x in runs[side])
+        print(f"{side}: first call {medians[side]:.1f} s (median of {len(runs[side])}), warm {warm:.1f} ms; "
+              f"compile seconds per function (own time, last run):")
+        print("\n".join(_top(runs[side][-1], args.top)))
+    if len(medians) == 2:
+        print(f"B / A first call: {medians['B'] / medians['A']:.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
