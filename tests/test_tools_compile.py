@@ -1,14 +1,16 @@
 """tools/bench_compile.py: the compile-time recorder attributes each numba compile to its own
-function, nested compiles subtracted, and the tool rejects bad arguments in one line."""
+function, nested compiles subtracted, and the tool rejects bad arguments in one line, exit code 2."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
 
 import pytest
 from numba import njit
 
-from _tools import load_tool
+from _tools import TOOLS, load_tool
 
 
 def test_compile_times_attribute_nested_compiles_to_their_own_function():
@@ -38,8 +40,12 @@ def test_compile_times_attribute_nested_compiles_to_their_own_function():
     assert again.seconds == {}
 
 
-@pytest.mark.parametrize("argv", [["--rounds", "0"], ["--height", "0"]])
-def test_bad_arguments_are_one_line(argv):
-    tool = load_tool("bench_compile")
-    with pytest.raises(SystemExit, match="must be at least 1"):
-        tool.main(argv)
+@pytest.mark.parametrize("argv, message", [(["--rounds", "0"], "must be at least 1"),
+                                           (["--height", "0"], "must be at least 1"),
+                                           (["--rev", "no-such-revision"], "is not a revision")])
+def test_bad_arguments_are_one_line_and_exit_code_2(argv, message):
+    proc = subprocess.run([sys.executable, str(TOOLS / "bench_compile.py"), *argv], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("bench_compile.py: error: ") and message in proc.stderr
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr

@@ -129,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.rounds < 1 or args.height < 1 or args.width < 1:
-        raise SystemExit("bench_compile: --rounds, --height and --width must be at least 1")
+        raise ValueError("--rounds, --height and --width must be at least 1")
     if args.child:
         print(json.dumps(child(args.height, args.width)))
         return 0
@@ -139,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.rev is not None:
             rev = subprocess.run(["git", "rev-parse", "--short", args.rev], cwd=HERE, capture_output=True, text=True)
             if rev.returncode != 0:
-                raise SystemExit(f"bench_compile: --rev {args.rev!r} is not a revision of this repository")
+                raise ValueError(f"--rev {args.rev!r} is not a revision of this repository")
             sides["A"] = Path(tmp) / "a"
             subprocess.run(["git", "worktree", "add", "--detach", "-q", str(sides["A"]), args.rev], cwd=HERE,
                            check=True)
@@ -168,4 +168,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    if "--child" in sys.argv:  # runs on the compared revision's edge, which may predate tool_main
+        sys.exit(main())
+    from edge.cli import tool_main
+
+    raise SystemExit(tool_main(main, __file__))
