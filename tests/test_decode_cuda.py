@@ -80,8 +80,8 @@ CHECKS = ["resolve-auto", "soft-all-ecc-22-10-uint8", "soft-all-gray-10-inverse"
 #: it calls that the session has not cached yet (these tests run last, `conftest.py`).  Under the
 #: simulator every GPU thread is a Python thread; `_cuda_checks.yield_while_polled` keeps the
 #: simulator's block loop from starving them: on the development machine (warm cache) the 21
-#: checks CI ran before went from 154 s to 24 s with it, and all checks take 80 s.  CI runs every check but the
-#: three slowest: "error-rule-ecc-22-10-fitted" (576 pixels, enough for the binned noise fit,
+#: checks CI ran before went from 154 s to 24 s with it, and all checks take 80 s.  CI runs
+#: every check but the three slowest: "error-rule-ecc-22-10-fitted" (576 pixels, enough for the binned noise fit,
 #: 16 s), "confidence-fit-soft-refit" (6 s) and "staged-threads" (6 s) run in the full set only:
 #: ``EDGE_CUDA_CHECKS=full`` runs every check.
 FULL_ONLY = ("error-rule-ecc-22-10-fitted", "confidence-fit-soft-refit", "staged-threads")

@@ -37,6 +37,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from real_data import REAL_CAPTURE  # noqa: E402
+from revision_tree import revision_tree  # noqa: E402
 
 CASES = ("easy", "hard", "hard-band", "service", "real")
 #: The real capture beside the repository (`tools/real_data.py`).
@@ -147,27 +148,19 @@ def main(argv: list[str] | None = None) -> int:
     elif "real" in args.cases and not real.is_dir():
         raise ValueError(f"--real: {args.real} is not a folder (the 'real' case needs the capture)")
     here = Path(__file__).resolve().parents[1]
-    rev = subprocess.run(["git", "rev-parse", "--short", args.rev], cwd=here, capture_output=True, text=True)
-    if rev.returncode != 0:
-        raise ValueError(f"--rev {args.rev!r} is not a revision of this repository")
-    with tempfile.TemporaryDirectory(prefix="bench-ab-") as tmp:
-        tree = Path(tmp) / "a"
-        subprocess.run(["git", "worktree", "add", "--detach", "-q", str(tree), args.rev],
-                       cwd=here, check=True)
-        try:
-            own = os.environ.get("NUMBA_CACHE_DIR")  # this tree's cache where one is set
-            sides = {"A": (tree, Path(tmp) / "cache-a"), "B": (here, Path(own) if own else Path(tmp) / "cache-b")}
-            print(f"A = {rev.stdout.strip()} ({args.rev}), B = this working tree; {args.rounds} rounds x "
-                  f"{args.repeats} repeats, cases {' '.join(args.cases)}", flush=True)
-            runs: dict[str, list[dict]] = {"A": [], "B": []}
-            for r in range(args.rounds):
-                for side in (("A", "B") if r % 2 == 0 else ("B", "A")):
-                    runs[side].append(_run_side(*sides[side], args.cases, args.repeats, real))
-                print(f"  round {r + 1}: " + "  ".join(
-                    f"{c} {runs['A'][-1][c]['median_s'] * 1e3:.0f}/{runs['B'][-1][c]['median_s'] * 1e3:.0f} ms"
-                    for c in args.cases), flush=True)
-        finally:
-            subprocess.run(["git", "worktree", "remove", "--force", str(tree)], cwd=here, check=False)
+    with tempfile.TemporaryDirectory(prefix="bench-ab-") as tmp, revision_tree(args.rev, Path(tmp) / "a") as rev:
+        own = os.environ.get("NUMBA_CACHE_DIR")  # this tree's cache where one is set
+        sides = {"A": (Path(tmp) / "a", Path(tmp) / "cache-a"),
+                 "B": (here, Path(own) if own else Path(tmp) / "cache-b")}
+        print(f"A = {rev} ({args.rev}), B = this working tree; {args.rounds} rounds x "
+              f"{args.repeats} repeats, cases {' '.join(args.cases)}", flush=True)
+        runs: dict[str, list[dict]] = {"A": [], "B": []}
+        for r in range(args.rounds):
+            for side in (("A", "B") if r % 2 == 0 else ("B", "A")):
+                runs[side].append(_run_side(*sides[side], args.cases, args.repeats, real))
+            print(f"  round {r + 1}: " + "  ".join(
+                f"{c} {runs['A'][-1][c]['median_s'] * 1e3:.0f}/{runs['B'][-1][c]['median_s'] * 1e3:.0f} ms"
+                for c in args.cases), flush=True)
     print(f"{'case':<10} {'A median':>10} {'B median':>10} {'B / A':>7}  outputs")
     for c in args.cases:
         a = statistics.median(x[c]["median_s"] for x in runs["A"])

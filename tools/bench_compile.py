@@ -19,6 +19,7 @@ alternating order; the report gives each side's median over rounds and B / A.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import statistics
@@ -28,7 +29,9 @@ import tempfile
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from revision_tree import HERE, revision_tree  # noqa: E402
 
 
 class CompileTimes:
@@ -128,32 +131,24 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--top", type=int, default=12, help="functions listed per side (default %(default)s)")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
-    if args.rounds < 1 or args.height < 1 or args.width < 1:
-        raise ValueError("--rounds, --height and --width must be at least 1")
+    if args.rounds < 1 or args.height < 1 or args.width < 1 or args.top < 1:
+        raise ValueError("--rounds, --height, --width and --top must be at least 1")
     if args.child:
         print(json.dumps(child(args.height, args.width)))
         return 0
     runs: dict[str, list[dict]] = {"A": [], "B": []}
-    with tempfile.TemporaryDirectory(prefix="bench-compile-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="bench-compile-") as tmp, contextlib.ExitStack() as stack:
         sides = {"B": HERE}
         if args.rev is not None:
-            rev = subprocess.run(["git", "rev-parse", "--short", args.rev], cwd=HERE, capture_output=True, text=True)
-            if rev.returncode != 0:
-                raise ValueError(f"--rev {args.rev!r} is not a revision of this repository")
             sides["A"] = Path(tmp) / "a"
-            subprocess.run(["git", "worktree", "add", "--detach", "-q", str(sides["A"]), args.rev], cwd=HERE,
-                           check=True)
-            print(f"A = {rev.stdout.strip()} ({args.rev}), B = this working tree", flush=True)
-        try:
-            for r in range(args.rounds):
-                order = ("A", "B") if r % 2 == 0 else ("B", "A")
-                for side in (s for s in order if s in sides):
-                    runs[side].append(_run_side(sides[side], args.height, args.width))
-                    print(f"  round {r + 1}, {side}: first call {runs[side][-1]['first_s']:.1f} s, warm "
-                          f"{runs[side][-1]['warm_ms']:.1f} ms", flush=True)
-        finally:
-            if "A" in sides:
-                subprocess.run(["git", "worktree", "remove", "--force", str(sides["A"])], cwd=HERE, check=False)
+            rev = stack.enter_context(revision_tree(args.rev, sides["A"]))
+            print(f"A = {rev} ({args.rev}), B = this working tree", flush=True)
+        for r in range(args.rounds):
+            order = ("A", "B") if r % 2 == 0 else ("B", "A")
+            for side in (s for s in order if s in sides):
+                runs[side].append(_run_side(sides[side], args.height, args.width))
+                print(f"  round {r + 1}, {side}: first call {runs[side][-1]['first_s']:.1f} s, warm "
+                      f"{runs[side][-1]['warm_ms']:.1f} ms", flush=True)
     print(f"decode() with its defaults, ecc-22-10 {args.height} x {args.width} uint8, empty numba cache:")
     medians = {}
     for side in (s for s in ("A", "B") if runs[s]):
