@@ -43,6 +43,7 @@ def test_compile_times_attribute_nested_compiles_to_their_own_function():
 @pytest.mark.parametrize("argv, message", [(["--rounds", "0"], "must be at least 1"),
                                            (["--height", "0"], "must be at least 1"),
                                            (["--top", "0"], "must be at least 1"),
+                                           (["--target", "run", "--stacks", "0"], "must be at least 1"),
                                            (["--rev", "no-such-revision"], "is not a revision")])
 def test_bad_arguments_are_one_line_and_exit_code_2(argv, message):
     proc = subprocess.run([sys.executable, str(TOOLS / "bench_compile.py"), *argv], capture_output=True, text=True,
