@@ -267,8 +267,10 @@ def _threshold_of(sample: np.ndarray, m: int) -> float:
 
 @njit(cache=True)
 def _published_finite(stat, column0, error, max_error, yy, xx):
-    """Pixel (yy, xx) is one the posterior alone would publish and its statistic is finite."""
-    return column0[yy, xx] >= 0 and error[yy, xx] < max_error and np.isfinite(stat[yy, xx])
+    """Pixel (yy, xx) is one the posterior alone would publish and its statistic is finite (the
+    three tests joined by ``&``, not ``and``: no branches, so that the counting pass vectorises;
+    with ``and`` the pass took 8x as long)."""
+    return (column0[yy, xx] >= 0) & (error[yy, xx] < max_error) & np.isfinite(stat[yy, xx])
 
 
 @njit(cache=True)
