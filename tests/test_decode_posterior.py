@@ -17,7 +17,8 @@ from _plane_box_sphere import render, scene as pbs_scene
 from edge.codes import get_code
 from edge.decode import decode
 from edge.decode.level_prior import level_prior, prior_cost
-from edge.decode.posterior import Noise, fit_noise, posterior, split_levels
+from edge.decode.posterior import (FULL_SCALE_SAMPLE, Noise, _noise_from, _split_levels, fit_noise, fit_step, posterior,
+                                   split_levels)
 from edge.eval.report import calibration_verdict, poisson_interval
 from edge.sim import CameraModel, capture_code
 from edge.sim.metrics import truth
@@ -28,10 +29,11 @@ GRAY, ECC = get_code("gray-10"), get_code("ecc-22-10")
 
 # -------------------------------------------------------------------------- brute-force references
 
-def _split_reference(samples: np.ndarray) -> tuple[float, float]:
+def _split_reference(samples: np.ndarray, *, threshold: bool = False) -> tuple[float, ...]:
     """Lloyd's two-means as `split_levels` states it (samples: the n frames, then white, black),
     in its arithmetic: sums in the samples' order, the lower class's mean as (total - upper sum)
-    / its count (a sample exactly at a threshold goes by those roundings)."""
+    / its count (a sample exactly at a threshold goes by those roundings).  (hi, lo), with
+    ``threshold`` (hi, lo, the final threshold)."""
     s = samples.astype(np.float64)
     top, bottom = s.max(), s.min()
     total = sum(s.tolist())
@@ -50,7 +52,23 @@ def _split_reference(samples: np.ndarray) -> tuple[float, float]:
         if up.sum() == last:
             break
         last = up.sum()
-    return hi, lo
+    return (hi, lo, t) if threshold else (hi, lo)
+
+
+def _split_residual_reference(samples: np.ndarray) -> tuple[float, float]:
+    """(s2, mu) of one pixel as `split_levels` states it: the residuals of the samples about the
+    level of their side of the final threshold, summed in the samples' order, over m - 2 (NaN where
+    a sample is at 0 or full scale), and the samples' mean.  samples: raw * scale in float64, as
+    the kernel normalises them (raw / 255 rounds differently, and a sample exactly at the
+    threshold then changes sides)."""
+    s = samples.astype(np.float64)
+    hi, lo, t = _split_reference(s, threshold=True)
+    ssr = 0.0
+    for v in s.tolist():
+        e = v - (hi if v > t else lo)
+        ssr += e * e
+    clipped = bool(((s <= 0.0) | (s >= FULL_SCALE_SAMPLE)).any())
+    return (np.nan if clipped else ssr / (s.size - 2)), sum(s.tolist()) / s.size
 
 
 def test_split_levels_matches_brute_force():
@@ -69,6 +87,49 @@ def test_split_levels_matches_brute_force():
             ref_hi, ref_lo = _split_reference(np.r_[frames[:, y, x], white[y, x], black[y, x]] / 255)
             assert hi[y, x] == pytest.approx(max(ref_hi, ref_lo + 1e-6), rel=1e-5)
             assert lo[y, x] == pytest.approx(ref_lo, rel=1e-5, abs=1e-7)
+
+
+def _split_capture(h: int, w: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Random uint8 frames (10, h, w), white and black (some samples at 0 and 255: clipped)."""
+    rng = np.random.default_rng(seed)
+    return (rng.integers(0, 256, (10, h, w)).astype(np.uint8), rng.integers(100, 256, (h, w)).astype(np.uint8),
+            rng.integers(0, 100, (h, w)).astype(np.uint8))
+
+
+@pytest.mark.parametrize("step", [1, 3, 64, 67])
+def test_split_levels_residuals_of_every_step_th_pixel_match_brute_force(step):
+    """The kernel's residual variance and mean level of pixel p (row-major) where p % step == 0,
+    at index p // step (lane blocks that start at any phase of the step, a partial last block)."""
+    frames, white, black = _split_capture(5, 70, 1)
+    k = -(-(5 * 70) // step)
+    hi, lo = np.empty((5, 70), np.float32), np.empty((5, 70), np.float32)
+    s2, mu = np.full(k, -1.0), np.full(k, -1.0)
+    _split_levels(frames, white, black, np.float64(1 / 255), step, hi, lo, s2, mu)
+    for p in range(0, 5 * 70, step):
+        y, x = divmod(p, 70)
+        ref_s2, ref_mu = _split_residual_reference(np.r_[frames[:, y, x], white[y, x], black[y, x]] * (1 / 255))
+        assert mu[p // step] == ref_mu  # bit for bit: the same operations in the same order
+        if np.isnan(ref_s2):
+            assert np.isnan(s2[p // step])
+        else:
+            assert s2[p // step] == ref_s2
+
+
+def test_split_levels_fits_the_noise_to_the_pixels_the_fit_samples():
+    """Above `FIT_PIXELS` pixels the noise model is `_noise_from`'s fit of the full grid's
+    residuals, which takes every `fit_step`-th pixel: the split levels compute just those."""
+    h, w = 205, 200
+    assert fit_step(h * w) == 2
+    frames, white, black = _split_capture(h, w, 2)
+    s2 = np.random.default_rng(3).random((h, w))  # pixels the fit must not read: noise
+    mu = np.random.default_rng(4).random((h, w))
+    for p in range(0, h * w, 2):
+        y, x = divmod(p, w)
+        s2[y, x], mu[y, x] = _split_residual_reference(np.r_[frames[:, y, x], white[y, x], black[y, x]] * (1 / 255))
+    _, _, noise = split_levels(frames, white, black, 1 / 255)
+    want = _noise_from(s2, mu, frames, 1 / 255, (0.01, 0.03))
+    assert noise.fitted and want.fitted
+    assert (noise.a, noise.beta) == (want.a, want.beta)
 
 
 def _fit_reference(r: np.ndarray, x: np.ndarray) -> tuple[float, float]:

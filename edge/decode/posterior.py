@@ -222,9 +222,12 @@ def _lane_above(R, m, t, sh, kh):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def _split_levels(frames, white, black, scale, out_hi, out_lo, out_s2, out_mu):
+def _split_levels(frames, white, black, scale, step, out_hi, out_lo, out_s2, out_mu):
     """Step 1 per pixel, LANES pixels of a row at a time (every lane runs the same Lloyd steps as
-    one pixel alone: the sums in the samples' order, a lane that has converged is left as it is)."""
+    one pixel alone: the sums in the samples' order, a lane that has converged is left as it is).
+    The residual variance and mean level only of the pixels the noise fit takes (`fit_step`):
+    pixel p (row-major) with ``p % step == 0`` into out_s2 / out_mu[p // step], its residuals
+    summed in the samples' order (NaN where a sample is at 0 or full scale)."""
     n, height, width = frames.shape
     m = n + 2
     L = LANES
@@ -237,14 +240,12 @@ def _split_levels(frames, white, black, scale, out_hi, out_lo, out_s2, out_mu):
         t2 = np.empty(L, np.float64)
         hi = np.empty(L, np.float64)
         lo = np.empty(L, np.float64)
-        ssr = np.empty(L, np.float64)
         sh = np.empty(L, np.float64)
         sh2 = np.empty(L, np.float64)
         kh = np.empty(L, np.int64)
         kh2 = np.empty(L, np.int64)
         count_hi = np.empty(L, np.int64)
         live = np.empty(L, np.bool_)
-        clip = np.empty(L, np.bool_)
         for x0 in range(0, width, L):
             _lane_samples(frames, white, black, scale, yy, x0, R)
             # two-means by Lloyd's iterations from the calibration midpoint (SPLIT_ITERATIONS, or
@@ -296,20 +297,19 @@ def _split_levels(frames, white, black, scale, out_hi, out_lo, out_s2, out_mu):
                     live[l] = changed
                 if not live.any():
                     break
-            for l in range(L):
-                ssr[l] = 0.0
-                clip[l] = False
-            for i in range(m):
-                for l in range(L):
+            p0 = yy * width + x0
+            for l in range((step - p0 % step) % step, min(L, width - x0), step):
+                ssr = 0.0
+                clip = False
+                for i in range(m):
                     v = R[i, l]
-                    h_, o_ = hi[l], lo[l]
-                    e = v - (h_ if v > t[l] else o_)
-                    ssr[l] += e * e
-                    clip[l] = clip[l] or v <= 0.0 or v >= FULL_SCALE_SAMPLE
+                    e = v - (hi[l] if v > t[l] else lo[l])
+                    ssr += e * e
+                    clip = clip or v <= 0.0 or v >= FULL_SCALE_SAMPLE
+                out_s2[(p0 + l) // step] = ssr / (m - 2) if not clip else np.nan
+                out_mu[(p0 + l) // step] = total[l] / m
             for l in range(min(L, width - x0)):
                 xx = x0 + l
-                out_s2[yy, xx] = ssr[l] / (m - 2) if not clip[l] else np.nan
-                out_mu[yy, xx] = total[l] / m
                 h_ = hi[l]
                 if h_ - lo[l] < 1e-6:
                     h_ = lo[l] + 1e-6
@@ -352,9 +352,10 @@ def split_levels(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale
     h, w = white.shape
     hi = np.empty((h, w), np.float32)
     lo = np.empty((h, w), np.float32)
-    s2 = np.empty((h, w), np.float64)
-    mu = np.empty((h, w), np.float64)
-    _split_levels(frames, white, black, np.float64(scale), hi, lo, s2, mu)
+    step = fit_step(h * w)
+    s2 = np.empty(-(-(h * w) // step), np.float64)  # the noise fit's pixels only (`_fit_sample`'s)
+    mu = np.empty_like(s2)
+    _split_levels(frames, white, black, np.float64(scale), step, hi, lo, s2, mu)
     return hi, lo, _noise_from(s2, mu, frames, scale, prior)
 
 
@@ -556,14 +557,18 @@ def _steps(h: int, w: int) -> tuple[int, int]:
     return sy, sx
 
 
+def fit_step(pixels: int) -> int:
+    """The step of `_fit_sample`'s regular subsample of ``pixels`` pixels: 1 up to `FIT_PIXELS`,
+    else ceil(pixels / FIT_PIXELS), so that it keeps at most `FIT_PIXELS` of them."""
+    return -(-pixels // FIT_PIXELS) if pixels > FIT_PIXELS else 1
+
+
 def _fit_sample(*arrays: np.ndarray) -> list[np.ndarray]:
-    """The pixels `_noise_from` fits, raveled: larger than `FIT_PIXELS`, every step-th pixel
-    (row-major; the CUDA backend downloads exactly that subsample)."""
+    """The pixels `_noise_from` fits, raveled: every `fit_step`-th pixel (row-major; the split
+    levels of both backends compute exactly that subsample, which this then keeps whole)."""
     out = [np.ravel(v) for v in arrays]
-    if out[0].size > FIT_PIXELS:  # a regular subsample (deterministic), as `_steps`
-        step = -(-out[0].size // FIT_PIXELS)
-        out = [v[::step] for v in out]
-    return out
+    step = fit_step(out[0].size)  # a regular subsample (deterministic), as `_steps`
+    return out if step == 1 else [v[::step] for v in out]
 
 
 def _noise_from(s2: np.ndarray, mu: np.ndarray, frames: np.ndarray, scale: float, prior: tuple[float, float]) -> Noise:

@@ -199,8 +199,8 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     noise_fit, posterior, not_lit_lookup, tail, download, and the host's publish_host)."""
     from ...decoder import band_choices
     from ...level_prior import kernel_args, level_prior
-    from ...posterior import (FIT_PIXELS, GAIN_BIN, SKIP_MARGIN, SPLIT_ITERATIONS, TAIL_FLOOR, _noise_from, _steps,
-                              fdr_lookup, gain_bins, lit_noise)
+    from ...posterior import (GAIN_BIN, SKIP_MARGIN, SPLIT_ITERATIONS, TAIL_FLOOR, _noise_from, _steps, fdr_lookup,
+                              fit_step, gain_bins, lit_noise)
 
     h, w = ds.shape
     n = int(ds.frames.shape[0])
@@ -217,7 +217,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
         searched = refit_stack(ds, code, s, metric, columns=columns, band=band, stripe=stripe, stream=stream,
                                buffers=buffers)
     elif source == "split":
-        step = -(-(h * w) // FIT_PIXELS) if h * w > FIT_PIXELS else 1
+        step = fit_step(h * w)
         k = -(-(h * w) // step)
         on = buffer(buffers, "split_on", (h, w), np.float32, stream)
         off = buffer(buffers, "split_off", (h, w), np.float32, stream)
