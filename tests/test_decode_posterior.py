@@ -344,20 +344,22 @@ def test_coding_gain_with_defaults_independent_renderer(ratio, bits):
 
 @pytest.mark.parametrize("gen, ratio", [(_sim, 0.25), (_sim, 2.0), (_pbs, 0.25), (_pbs, 2.0)],
                          ids=["edge.sim-0.25", "edge.sim-2", "plane-box-sphere-0.25", "plane-box-sphere-2"])
-@pytest.mark.parametrize("name", ["ecc-22-10", "ecc-63-10", "gray-10"])
-def test_soft_search_margin_leaves_every_output_as_the_exact_search_does(monkeypatch, gen, ratio, name):
+@pytest.mark.parametrize("name, method", [("ecc-22-10", "soft"), ("ecc-63-10", "soft"), ("gray-10", "soft"),
+                                          ("ecc-22-10", "sgm"), ("gray-10", "sgm")])
+def test_soft_search_margin_leaves_every_output_as_the_exact_search_does(monkeypatch, gen, ratio, name, method):
     """`decode()`'s soft search locates the second and third candidates only within the
-    posterior's skip margin (`SKIP_MARGIN`): column, valid, error, confidence and distances equal
-    those of a decode whose search returns the exact top three, and a candidate differs only
-    where the exact decode's distance is inf (not rescored) and the margin's is -1."""
+    posterior's skip margin (`SKIP_MARGIN`), for methods "soft" and "sgm" (whose propagation and
+    unaries take a candidate of distance inf as absent): column, valid, error, confidence and
+    distances equal those of a decode whose search returns the exact top three, and a candidate
+    differs only where the exact decode's distance is inf (not rescored) and the margin's is -1."""
     import edge.decode.decoder as decoder
 
     code = get_code(name)
     f, w, b, bd, _, _ = gen(code, ratio)
-    fast = decode(f, w, b, code, bit_depth=bd)
+    fast = decode(f, w, b, code, bit_depth=bd, method=method)
     search = decoder.search_candidates
     monkeypatch.setattr(decoder, "search_candidates", lambda *a, **k: search(*a, **dict(k, margin=None)))
-    exact = decode(f, w, b, code, bit_depth=bd)
+    exact = decode(f, w, b, code, bit_depth=bd, method=method)
     for field in ("column", "valid", "error", "confidence", "distances"):
         np.testing.assert_array_equal(getattr(fast, field), getattr(exact, field), err_msg=field)
     moved = fast.candidates != exact.candidates
@@ -367,8 +369,8 @@ def test_soft_search_margin_leaves_every_output_as_the_exact_search_does(monkeyp
         assert fast.stats["margin_pixels"] > 0 and fast.stats["margin_blocks"] > 0
 
 
-@pytest.mark.parametrize("name", ["ecc-22-10", "gray-10"])
-def test_soft_search_margin_in_a_band_leaves_every_output_as_the_exact_search_does(monkeypatch, name):
+@pytest.mark.parametrize("name, method", [("ecc-22-10", "soft"), ("gray-10", "soft"), ("ecc-22-10", "sgm")])
+def test_soft_search_margin_in_a_band_leaves_every_output_as_the_exact_search_does(monkeypatch, name, method):
     """As above, with a disparity band (the band search, whose blocks the lane search's first
     step finishes where every pixel is beyond the margin): bright and dim rows."""
     import edge.decode.decoder as decoder
@@ -380,7 +382,7 @@ def test_soft_search_margin_in_a_band_leaves_every_output_as_the_exact_search_do
     cols = np.clip(np.arange(w)[None, :] - rng.integers(0, 40, (h, w)), 0, code.size - 1)
     albedo = np.where(np.arange(h)[:, None] < 8, rng.uniform(0.5, 0.9, (h, w)), rng.uniform(0.02, 0.2, (h, w)))
     cap = make_capture(code, cols, rng=rng, albedo=albedo, ambient=0.05, sigma_r=0.01, sigma_s=0.03)
-    kw = dict(min_disparity=0, max_disparity=40)
+    kw = dict(min_disparity=0, max_disparity=40, method=method)
     fast = decode(cap.frames, cap.white, cap.black, code, **kw)
     search = decoder.search_candidates
     monkeypatch.setattr(decoder, "search_candidates", lambda *a, **k: search(*a, **dict(k, margin=None)))

@@ -11,8 +11,8 @@ the error rule states exactly).
     python tools/bench_ab.py --rev HEAD~1 --rounds 4 --repeats 3
 
 Cases: "easy" and "hard" (`tools/bench_decode.py`'s two 600 x 700 inputs, `decode()` with its
-defaults), "easy-median" (the easy input with ``method="median"``: the exact top-3 search and the
-spatial path, which the defaults do not run), "hard-band" (the same in its disparity band), "service" (`DepthPipeline.process`
+defaults), "easy-median" and "easy-sgm" (the easy input with ``method="median"`` / ``"sgm"``: the
+spatial paths, which the defaults do not run; "median" on the exact top-3 search), "hard-band" (the same in its disparity band), "service" (`DepthPipeline.process`
 of a `sim-dlp` stack from the simulated sensor) and "real" (the real OpenCV Gray-code capture,
 ``--real``, pattern + inverse frames, `decode()` with its defaults: the confidence rule and its
 goodness-of-fit test; in the default cases where the folder is there).  Each side compiles into its own numba cache
@@ -40,7 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from real_data import REAL_CAPTURE  # noqa: E402
 from revision_tree import revision_tree  # noqa: E402
 
-CASES = ("easy", "easy-median", "hard", "hard-band", "service", "real")
+CASES = ("easy", "easy-median", "easy-sgm", "hard", "hard-band", "service", "real")
 #: The real capture beside the repository (`tools/real_data.py`).
 REAL = REAL_CAPTURE
 
@@ -67,10 +67,11 @@ def child(cases: list[str], repeats: int, real: Path) -> dict:
     from edge.decode import decode
 
     jobs = {}
-    if "easy" in cases or "easy-median" in cases:
+    if {"easy", "easy-median", "easy-sgm"} & set(cases):
         code, _, cap = B.make_input(600, 700, 128, 0)
         jobs["easy"] = lambda: decode(cap.frames, cap.white, cap.black, code)
         jobs["easy-median"] = lambda: decode(cap.frames, cap.white, cap.black, code, method="median")
+        jobs["easy-sgm"] = lambda: decode(cap.frames, cap.white, cap.black, code, method="sgm")
     if "hard" in cases or "hard-band" in cases:
         hcode, _, hard, (lo, hi) = B.make_hard_input(600, 700, 0)
         jobs["hard"] = lambda: decode(hard.frames, hard.white, hard.black, hcode, bit_depth=12)

@@ -116,8 +116,8 @@ class Decoded:
         above ``max_error`` where neighbours' support published the column).  Under
         that rule candidates / distances are the posterior's (re-ordered by it, distances the
         negative log-likelihoods plus the capture's level prior, `edge.decode.level_prior`; with
-        method "soft" a second or third more than `posterior.SKIP_MARGIN` behind the best is not
-        searched for and is -1, distance inf) and confidence is ``(d2 - d1) / d2`` of their Mahalanobis parts; with method "sgm", candidates are re-ordered by aggregated cost and error is the
+        methods "soft" and "sgm" a second or third more than `posterior.SKIP_MARGIN` behind the
+        best is not searched for and is -1, distance inf) and confidence is ``(d2 - d1) / d2`` of their Mahalanobis parts; with method "sgm", candidates are re-ordered by aggregated cost and error is the
         regularised one (`edge.decode.sgm`).
     """
 
@@ -302,9 +302,12 @@ def _decode_error_rule(stack: CodedCapture, code: Code, s: DecodeSettings, *, nc
         s = s.with_noise(first_noise.a, first_noise.beta)
     else:
         searched = stack
-    # soft: the posterior rescores only candidates within SKIP_MARGIN of the best, so the search
-    # need not locate the others; the spatial methods read every candidate, so they get the top 3
-    margin = SKIP_MARGIN if s.method == "soft" else None
+    # the posterior rescores only candidates within SKIP_MARGIN of the best (the others: distance
+    # inf), so the search need not locate the others for "soft", nor for "sgm", whose stages treat
+    # a candidate of distance inf as absent (propagate scores such a row afresh, sgm's unaries
+    # give it the absent state's cost); "list" / "median" may publish any of the top 3 that the
+    # neighbours support, whatever its distance, so they get the exact top 3
+    margin = SKIP_MARGIN if s.method in ("soft", "sgm") else None
     found = search_candidates(searched, code, s, columns=ncols, band=band, stripe=stripe, margin=margin)
     best = found.candidates[..., 0]
     noise = fit_noise(stack.frames, stack.white, stack.black, float(scale), code, best,
