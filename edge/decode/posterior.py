@@ -352,10 +352,9 @@ def split_levels(frames: np.ndarray, white: np.ndarray, black: np.ndarray, scale
     h, w = white.shape
     hi = np.empty((h, w), np.float32)
     lo = np.empty((h, w), np.float32)
-    step = fit_step(h * w)
-    s2 = np.empty(-(-(h * w) // step), np.float64)  # the noise fit's pixels only (`_fit_sample`'s)
+    s2 = np.empty(fit_size(h * w), np.float64)  # the noise fit's pixels only (`_fit_sample`'s)
     mu = np.empty_like(s2)
-    _split_levels(frames, white, black, np.float64(scale), step, hi, lo, s2, mu)
+    _split_levels(frames, white, black, np.float64(scale), fit_step(h * w), hi, lo, s2, mu)
     return hi, lo, _noise_from(s2, mu, frames, scale, prior)
 
 
@@ -561,6 +560,12 @@ def fit_step(pixels: int) -> int:
     """The step of `_fit_sample`'s regular subsample of ``pixels`` pixels: 1 up to `FIT_PIXELS`,
     else ceil(pixels / FIT_PIXELS), so that it keeps at most `FIT_PIXELS` of them."""
     return -(-pixels // FIT_PIXELS) if pixels > FIT_PIXELS else 1
+
+
+def fit_size(pixels: int) -> int:
+    """How many of ``pixels`` pixels that subsample keeps (every `fit_step`-th from the first):
+    the length of the split levels' compact residual arrays on both backends."""
+    return -(-pixels // fit_step(pixels))
 
 
 def _fit_sample(*arrays: np.ndarray) -> list[np.ndarray]:

@@ -200,7 +200,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
     from ...decoder import band_choices
     from ...level_prior import kernel_args, level_prior
     from ...posterior import (GAIN_BIN, SKIP_MARGIN, SPLIT_ITERATIONS, TAIL_FLOOR, _noise_from, _steps, fdr_lookup,
-                              fit_step, gain_bins, lit_noise)
+                              fit_size, fit_step, gain_bins, lit_noise)
 
     h, w = ds.shape
     n = int(ds.frames.shape[0])
@@ -217,8 +217,7 @@ def error_device(ds: DeviceStack, code: Code, s: DecodeSettings, metric: int, *,
         searched = refit_stack(ds, code, s, metric, columns=columns, band=band, stripe=stripe, stream=stream,
                                buffers=buffers)
     elif source == "split":
-        step = fit_step(h * w)
-        k = -(-(h * w) // step)
+        step, k = fit_step(h * w), fit_size(h * w)
         on = buffer(buffers, "split_on", (h, w), np.float32, stream)
         off = buffer(buffers, "split_off", (h, w), np.float32, stream)
         s2 = buffer(buffers, "split_s2", (k,), np.float64, stream)
