@@ -1,6 +1,10 @@
 """Decoders: soft-decision ML, hard, list decoding with the order prior, confidence median
 filter; EDC error maps; loaders for real capture layouts."""
 
+from ..numba_cache import install as _install_cache_lock
+
+_install_cache_lock()  # before any kernel of this package is compiled or loaded (edge.numba_cache)
+
 from .check import check, check_capture, contrast_error_map, error_map
 from .decoder import DEFAULTS, METHODS, Decoded, decode, decode_capture, decode_refined
 from .inputs import NoPatternContrast

@@ -16,6 +16,10 @@ Public API::
     lookup_columns(frames, white, black, code) -> column or -1 (the EDC check)
 """
 
+from ..numba_cache import install as _install_cache_lock
+
+_install_cache_lock()  # before any kernel of this package is compiled or loaded (edge.numba_cache)
+
 from .adaptive import AdaptiveResult, AdaptiveScan, RoundResult, run_adaptive
 from .gupta import EnsembleScheme, ensemble_vote, gupta_codes
 from .lookup import lookup_columns

@@ -10,6 +10,10 @@ Public API::
     evaluate(decoded_column, scene, *, valid=None, threshold=0, stripe=1) -> Metrics
 """
 
+from ..numba_cache import install as _install_cache_lock
+
+_install_cache_lock()  # before any kernel of this package is compiled or loaded (edge.numba_cache)
+
 from .camera import SUPPORTED_BITS, CameraModel
 from .geometry import DEPTH_RANGE_M, Geometry
 from .metrics import Metrics, depth_from_columns, error_map, error_rate, evaluate

@@ -21,6 +21,10 @@ from typing import Iterator
 import numpy as np
 from numba import njit, prange
 
+from ..numba_cache import install as _install_cache_lock
+
+_install_cache_lock()  # before any kernel of this module is compiled or loaded (edge.numba_cache)
+
 EVENT_DTYPE = np.dtype([("x", "<u2"), ("y", "<u2"), ("t", "<i8"), ("p", "i1")])
 
 #: Source labels returned by `simulate_events(..., labels=...)` for background-activity events.

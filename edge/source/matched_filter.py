@@ -37,7 +37,10 @@ import numpy as np
 from numba import njit, prange
 
 from ..codes.source import OFF_MODES, SourceCode, source_code
+from ..numba_cache import install as _install_cache_lock
 from .events import EVENT_DTYPE, check_events
+
+_install_cache_lock()  # before any kernel of this module is compiled or loaded (edge.numba_cache)
 
 DEFAULT_THRESHOLD = 0.85
 #: Event default: ``10100010`` against a plain ``10`` square wave at the same slot rate reaches a

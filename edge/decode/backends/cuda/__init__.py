@@ -33,6 +33,10 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 from numba import cuda  # noqa: E402
 
+from ....numba_cache import install as _install_cache_lock  # noqa: E402
+
+_install_cache_lock()  # numba-cuda's own cache file class, now that it is imported (edge.numba_cache)
+
 from ....codes import Code  # noqa: E402
 from ....capture import CodedCapture  # noqa: E402
 from .cost import SIM  # noqa: E402
