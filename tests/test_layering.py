@@ -6,6 +6,7 @@ including the lazy ones inside functions; ``importlib`` look-ups by name, such a
 registry `edge.device.PIPELINES`, are data and not counted)::
 
     edge (the package root: __version__ only)
+    numba_cache  edge/numba_cache.py: the lock on numba's on-disk cache (numba only)
     triangulation  edge/triangulation.py: disparity <-> depth (numpy only)
     codes      code values, CRC, source codes
     capture    the coded-capture type (frames, white, black, exposure, bit depth)
@@ -39,6 +40,7 @@ ROOT = Path(__file__).resolve().parents[1] / "edge"
 #: (layer, packages / top-level modules of edge/ in it), lowest first
 LAYERS: list[tuple[str, ...]] = [
     ("",),  # edge/__init__.py
+    ("numba_cache",),  # edge/numba_cache.py: installed by every package / module with numba kernels
     ("triangulation",),  # edge/triangulation.py: the depth formula (numpy only)
     ("codes",),
     ("capture",),
