@@ -151,7 +151,8 @@ def test_search_with_a_margin_locates_every_codeword_within_it(name, inverse):
     does; a slot it does not locate (`BEYOND`) holds, in the exact search, a codeword whose
     float32 distance is more than the margin behind the best (what the posterior's skip test
     computes), and an empty slot stays empty.  Bright and dim pixels side by side (both stages:
-    blocks that skip the lightest class and lanes finished after it), restricted columns, a band
+    blocks that skip the lightest class, lanes of other blocks finished at D = 0, and lanes
+    finished after the lightest class), restricted columns, a band
     and one- and two-column bands (edge lanes whose range holds fewer than three columns)."""
     from edge.decode.kernels import BEYOND
 
@@ -168,6 +169,7 @@ def test_search_with_a_margin_locates_every_codeword_within_it(name, inverse):
              ("band", (True, -20, 40), 700), ("band", (True, 0, 1), code.size), ("band", (True, 5, 5), code.size)]
     skipped = {"lanes": 0, "band": 0}
     finished = 0
+    lanes_alone = 0
     for path, band, ncols in cases:
         kw = dict(metric=METRIC_ML, sigma_r=SR, sigma_s=SS, columns=ncols, band=band, stripe=1)
         ref = cpu_backend.search(st, code, path="scalar", **kw)
@@ -194,8 +196,11 @@ def test_search_with_a_margin_locates_every_codeword_within_it(name, inverse):
         skipped[path] += got[3]["margin_blocks"]
         if path == "lanes":
             finished += got[3]["margin_pixels"]
+            lanes_alone += got[3]["margin_lanes"]
             assert got[3]["margin_pixels"] >= int((gc == BEYOND).any(axis=2).sum()), what
-    assert min(skipped.values()) > 0 and finished > 0  # the margin decided something (every code path ran)
+    # the margin decided something on every code path: whole blocks, lanes alone after D = 0
+    # (in blocks that did not skip), lanes after the lightest class
+    assert min(skipped.values()) > 0 and finished > 0 and lanes_alone > 0
 
 
 def test_lightest_floor_bounds_the_class_bound_from_below():

@@ -114,14 +114,15 @@ def search(
         kernels.soft_band(*pixels, model, tb.scan_tables, bnd, cand, dist, conf, stats)
         st = {"path": path, "brute_pixels": int(stats[:, 0].sum()), "evaluated": int(stats[:, 1].sum())}
     elif path == "lanes":
-        stats = np.zeros((h, 8), np.int64)
+        stats = np.zeros((h, 10), np.int64)
         kernels.soft_lanes(*pixels, model, tb.lane_tables, bnd, np.int64(margin_q), np.float64(margin_f),
                            cand, dist, conf, stats)
         tot = stats.sum(axis=0)
         st = {"path": path, "brute_pixels": 0, "evaluated": int(tot[1]),
               "second_class_pixels": int(tot[0]), "second_class_blocks": int(tot[2]),
               "blocks": int(tot[3]), "pending_blocks": int(tot[4]), "zero_set_pixels": int(tot[5]),
-              "margin_pixels": int(tot[6]), "margin_blocks": int(tot[7])}
+              "margin_pixels": int(tot[6]), "margin_blocks": int(tot[7]), "first_class_blocks": int(tot[8]),
+              "margin_lanes": int(tot[9])}
     elif path == "scalar":
         stats = np.zeros((h, 2), np.int64)
         kernels.soft_binary(*pixels, model, tb.scalar_tables, bnd, BAND_BRUTE_MAX, cand, dist, conf, stats)

@@ -4,10 +4,11 @@ The c_ref / V decomposition of `edge.decode.kernels.scalar`, but LANES (= 64) co
 of a row are decoded together with V stored (n, LANES), so the cost of c_ref ^ D for every lane
 is |D| contiguous vector adds with positions shared by all lanes, the column is
 col(c_ref) ^ col(D), and the top-3 update is a branch-free min/max network per lane.  Whole
-weight classes are evaluated (D = 0 and the lightest class for the whole block); a lane is
-finished when its third-best cost is below the class bound of the heavier classes (sum of the t
-smallest V, lanes sorted with a vectorised odd-even network); the others are moved to a per-row
-pending block that evaluates the next classes.  On the issue-4 benchmark (ecc-22-10: classes 8,
+weight classes are evaluated (D = 0 for the whole block, the lightest class for a queue of the
+row's lanes that D = 0 did not finish); a lane is finished when its third-best cost is below the
+class bound of the heavier classes (sum of the t smallest V, lanes sorted with a vectorised
+odd-even network); the others are moved to a per-row pending queue that evaluates the next
+classes.  On the issue-4 benchmark (ecc-22-10: classes 8,
 12, 16) about 5e-6 of the pixels need class 12.  Tables: `edge.decode.tables.LaneTables`.
 """
 
@@ -372,6 +373,125 @@ def margin_block(Y, n, tables, active, lo, hi, dmin, q_scale, margin_q, margin, 
     return True
 
 
+class LaneQueue(NamedTuple):
+    """A block of up to LANES lanes gathered from several blocks of a row (`_queue_lane`), each
+    with what its search needs next: V (n, LANES) int32, class bounds lb (nclass + 1, LANES) int64,
+    base, colref, lo, hi (LANES,) int32, keys k1 / k2 / k3 (LANES,) int64, dmin (LANES,) float64
+    and its pixel's x (LANES,) int64."""
+
+    V: np.ndarray
+    lb: np.ndarray
+    base: np.ndarray
+    colref: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    k1: np.ndarray
+    k2: np.ndarray
+    k3: np.ndarray
+    dmin: np.ndarray
+    x: np.ndarray
+
+
+@njit(cache=True)
+def _lane_queue(n, nclass):
+    L = LANES
+    return LaneQueue(np.zeros((n, L), np.int32), np.zeros((nclass + 1, L), np.int64), np.zeros(L, np.int32),
+                     np.zeros(L, np.int32), np.zeros(L, np.int32), np.zeros(L, np.int32), np.full(L, NO_KEY),
+                     np.full(L, NO_KEY), np.full(L, NO_KEY), np.zeros(L, np.float64), np.zeros(L, np.int64))
+
+
+@njit(cache=True)
+def _queue_lane(q, p, V, lb, base, colref, lo, hi, k1, k2, k3, dmin, l, xx, n, nclass):
+    """Copy lane l (pixel x = xx) of a block into slot p of queue q."""
+    for i in range(n):
+        q.V[i, p] = V[i, l]
+    for c in range(nclass + 1):
+        q.lb[c, p] = lb[c, l]
+    q.base[p] = base[l]
+    q.colref[p] = colref[l]
+    q.lo[p] = lo[l]
+    q.hi[p] = hi[l]
+    q.k1[p] = k1[l]
+    q.k2[p] = k2[l]
+    q.k3[p] = k3[l]
+    q.dmin[p] = dmin[l]
+    q.x[p] = xx
+
+
+@njit(cache=True)
+def _pad_queue(q, count, n):
+    """Lanes count.. of a partly filled queue: V, base and colref 0 (their results are not read)."""
+    for p in range(count, LANES):
+        for i in range(n):
+            q.V[i, p] = 0
+        q.base[p] = 0
+        q.colref[p] = 0
+
+
+@njit(cache=True)
+def _run_pending(P, count, n, tables, acc, q_scale, out_col, out_dist, out_conf, yy):
+    """The pending queue's ``count`` lanes: every class from the second on until their top-3 is
+    proved (exact), then written.  Returns the codeword evaluations."""
+    nclass = tables.cls_weight.shape[0]
+    _pad_queue(P, count, n)
+    evaluated = count * _run_classes(P.V, P.lb, P.base, P.colref, P.lo, P.hi, P.k1, P.k2, P.k3, acc, count, 1,
+                                     nclass, nclass, tables.cls_weight, tables.cls_start, tables.cls_pstart,
+                                     tables.dpos, tables.dcol)
+    for p in range(count):
+        _write(out_col, out_dist, out_conf, yy, P.x[p], P.k1[p], P.k2[p], P.k3[p], P.dmin[p], q_scale)
+    return evaluated
+
+
+@njit(cache=True)
+def _run_first(Q, count, P, npend, n, tables, acc, margin_q, margin, q_scale, out_col, out_dist, out_conf, yy,
+               ZB, ZL, ZK, last_col, cnt):
+    """The first-class queue's ``count`` lanes: the lightest weight class, then per lane: top-3
+    proved by the next class's bound (written), or every codeword not evaluated beyond the
+    margin (written, `_beyond_keys`), or a full-space code's ties at cost 0 (`_zero_set_top3`,
+    written), else moved to the pending queue P (which runs once full).  Returns P's new count;
+    adds to cnt: [0] evaluations, [1] lanes moved to P, [2] 1 if any was, [3] pending blocks
+    run, [4] zero-set lanes, [5] margin lanes."""
+    nclass = tables.cls_weight.shape[0]
+    full_space = tables.full_space
+    _pad_queue(Q, count, n)
+    for p in range(count):
+        Q.k2[p] = NO_KEY
+        Q.k3[p] = NO_KEY
+    cnt[0] += count * _run_classes(Q.V, Q.lb, Q.base, Q.colref, Q.lo, Q.hi, Q.k1, Q.k2, Q.k3, acc, count, 0, 1,
+                                   nclass, tables.cls_weight, tables.cls_start, tables.cls_pstart, tables.dpos,
+                                   tables.dcol)
+    moved = False
+    for p in range(count):
+        xx = Q.x[p]
+        bound = Q.base[p] + Q.lb[1, p]
+        if (Q.k3[p] >> IDX_BITS) < bound:
+            _write(out_col, out_dist, out_conf, yy, xx, Q.k1[p], Q.k2[p], Q.k3[p], Q.dmin[p], q_scale)
+            continue
+        if _beyond(Q.k1[p], bound, margin_q, margin, Q.dmin[p], q_scale):
+            b2, b3 = _beyond_keys(Q.k1[p], Q.k2[p], Q.k3[p], bound, Q.lo[p], Q.hi[p])
+            _write(out_col, out_dist, out_conf, yy, xx, Q.k1[p], b2, b3, Q.dmin[p], q_scale, margin)
+            cnt[5] += 1
+            continue
+        # a full-space code, every column a candidate, two or more zero costs: the top three
+        # are the tied words' least columns (`_zero_set_top3`), no class search needed
+        if (full_space and Q.lo[p] <= 0 and Q.hi[p] >= last_col
+                and _zero_set_top3(Q.V, p, n, Q.colref[p], tables.col_bit, ZB, ZL, ZK)):
+            _write(out_col, out_dist, out_conf, yy, xx, ZK[0], ZK[1], ZK[2], Q.dmin[p], q_scale)
+            cnt[4] += 1
+            continue
+        moved = True
+        cnt[1] += 1
+        _queue_lane(P, npend, Q.V, Q.lb, Q.base, Q.colref, Q.lo, Q.hi, Q.k1, Q.k2, Q.k3, Q.dmin, p, xx, n, nclass)
+        npend += 1
+        if npend == LANES:
+            cnt[0] += _run_pending(P, npend, n, tables, acc, q_scale, out_col, out_dist, out_conf, yy)
+            cnt[3] += 1
+            npend = 0
+    if moved:
+        cnt[2] += 1
+    return npend
+
+
 @njit(cache=True)
 def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables, band, margin_q, margin,
                out_col, out_dist, out_conf, out_stats):
@@ -379,8 +499,7 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
     metric, sr2, ss2, q_scale, ltab = model.metric, model.sr2, model.ss2, model.q_scale, model.ltab
     masks, syn_col, col_bit = tables.masks, tables.syn_col, tables.col_bit
     leader, leader_col, has_leader = tables.leader, tables.leader_col, tables.has_leader
-    cls_weight, cls_start, cls_pstart = tables.cls_weight, tables.cls_start, tables.cls_pstart
-    dpos, dcol = tables.dpos, tables.dcol
+    cls_weight = tables.cls_weight
     full_space = tables.full_space
     ncols, use_band, min_d, max_d, stripe = band.ncols, band.use_band, band.min_d, band.max_d, band.stripe
     n, height, width = frames.shape
@@ -404,34 +523,23 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
     lo = np.zeros(L, np.int32)
     hi = np.zeros(L, np.int32)
     k1 = np.empty(L, np.int64)
-    k2 = np.empty(L, np.int64)
-    k3 = np.empty(L, np.int64)
+    none = np.full(L, NO_KEY)
     dmin = np.zeros(L, np.float64)
     active = np.zeros(L, np.bool_)
-    # pending block (lanes that need the heavier classes)
-    PV = np.zeros((n, L), np.int32)
-    Plb = np.zeros((nclass + 1, L), np.int64)
-    Pbase = np.zeros(L, np.int32)
-    Pcolref = np.zeros(L, np.int32)
-    Plo = np.zeros(L, np.int32)
-    Phi = np.zeros(L, np.int32)
-    Pk1 = np.empty(L, np.int64)
-    Pk2 = np.empty(L, np.int64)
-    Pk3 = np.empty(L, np.int64)
-    Pdmin = np.zeros(L, np.float64)
-    Px = np.zeros(L, np.int64)
+    Q = _lane_queue(n, nclass)  # lanes due for the lightest class
+    P = _lane_queue(n, nclass)  # lanes due for the heavier classes
     ZB = np.zeros(n, np.int64)
     ZL = np.zeros(n, np.int64)
     ZK = np.zeros(3, np.int64)
+    cnt = np.zeros(6, np.int64)
     last_col = (1 << n) - 1 if full_space else 0  # a full-space code's last column (n <= IDX_BITS)
+    nq = 0
     npend = 0
-    n_zero = 0
-    n_second = 0
     evaluated = 0
-    blocks_second = 0
     blocks = 0
-    pend_blocks = 0
+    first_blocks = 0
     n_margin = 0
+    lane_margin = 0
     blocks_margin = 0
     for x0 in range(0, width, L):
         blocks += 1
@@ -445,101 +553,58 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
                     _write_none(out_col, out_dist, out_conf, yy, x0 + l)
             continue
         _first_keys(colref, base, lo, hi, k1)
-        for l in range(L):
-            k2[l] = NO_KEY
-            k3[l] = NO_KEY
         evaluated += nact
-        cidx = 0  # the class bound of the codewords not evaluated
-        if nclass > 0:
-            # with a margin: the lightest class is skipped where every lane's best is already
-            # the margin ahead of all other codewords
-            if _first_bounds(V, SV, run, lb, n, cls_weight, nclass, k1, base, active, x0, width, margin_q, margin,
-                             dmin, q_scale):
-                blocks_margin += 1
-            else:
-                evaluated += nact * _run_classes(V, lb, base, colref, lo, hi, k1, k2, k3, acc, L, 0,
-                                                 1, nclass, cls_weight, cls_start, cls_pstart,
-                                                 dpos, dcol)
-                cidx = 1
-        else:
+        if nclass == 0:  # no codeword but c_ref
             for l in range(L):
-                lb[0, l] = _NO_BOUND
-        any_second = False
+                if x0 + l < width:
+                    if active[l]:
+                        _write(out_col, out_dist, out_conf, yy, x0 + l, k1[l], NO_KEY, NO_KEY, dmin[l], q_scale)
+                    else:
+                        _write_none(out_col, out_dist, out_conf, yy, x0 + l)
+            continue
+        # with a margin: the lightest class is skipped where every lane's best is already the
+        # margin ahead of all other codewords (the block), else lane by lane
+        whole = _first_bounds(V, SV, run, lb, n, cls_weight, nclass, k1, base, active, x0, width, margin_q, margin,
+                              dmin, q_scale)
+        blocks_margin += 1 if whole else 0
         for l in range(L):
             xx = x0 + l
             if xx >= width:
-                continue
+                break
             if not active[l]:
                 _write_none(out_col, out_dist, out_conf, yy, xx)
                 continue
-            if (k3[l] >> IDX_BITS) < base[l] + lb[cidx, l]:
-                _write(out_col, out_dist, out_conf, yy, xx, k1[l], k2[l], k3[l], dmin[l], q_scale)
-                continue
-            bound = base[l] + lb[cidx, l]
-            if _beyond(k1[l], bound, margin_q, margin, dmin[l], q_scale):
-                b2, b3 = _beyond_keys(k1[l], k2[l], k3[l], bound, lo[l], hi[l])
+            bound = base[l] + lb[0, l]
+            if whole or _beyond(k1[l], bound, margin_q, margin, dmin[l], q_scale):
+                b2, b3 = _beyond_keys(k1[l], NO_KEY, NO_KEY, bound, lo[l], hi[l])
                 _write(out_col, out_dist, out_conf, yy, xx, k1[l], b2, b3, dmin[l], q_scale, margin)
                 n_margin += 1
+                lane_margin += 0 if whole else 1
                 continue
-            if cidx == 0:  # (not reached: a skipped class means every lane is beyond the margin)
-                raise AssertionError("lanes: a lane of a block that skipped its first class is not finished")
-            # a full-space code, every column a candidate, two or more zero costs: the top three
-            # are the tied words' least columns (`_zero_set_top3`), no class search needed
-            if (full_space and lo[l] <= 0 and hi[l] >= last_col
-                    and _zero_set_top3(V, l, n, colref[l], col_bit, ZB, ZL, ZK)):
-                _write(out_col, out_dist, out_conf, yy, xx, ZK[0], ZK[1], ZK[2], dmin[l], q_scale)
-                n_zero += 1
-                continue
-            # move lane l into the pending block
-            any_second = True
-            n_second += 1
-            p = npend
-            for i in range(n):
-                PV[i, p] = V[i, l]
-            for c in range(nclass + 1):
-                Plb[c, p] = lb[c, l]
-            Pbase[p] = base[l]
-            Pcolref[p] = colref[l]
-            Plo[p] = lo[l]
-            Phi[p] = hi[l]
-            Pk1[p] = k1[l]
-            Pk2[p] = k2[l]
-            Pk3[p] = k3[l]
-            Pdmin[p] = dmin[l]
-            Px[p] = xx
-            npend += 1
-            if npend == L:
-                evaluated += npend * _run_classes(PV, Plb, Pbase, Pcolref, Plo, Phi, Pk1, Pk2, Pk3,
-                                                  acc, npend, 1, nclass, nclass, cls_weight,
-                                                  cls_start, cls_pstart, dpos, dcol)
-                for q in range(npend):
-                    _write(out_col, out_dist, out_conf, yy, Px[q], Pk1[q], Pk2[q], Pk3[q],
-                           Pdmin[q], q_scale)
-                npend = 0
-                pend_blocks += 1
-        if any_second:
-            blocks_second += 1
+            _queue_lane(Q, nq, V, lb, base, colref, lo, hi, k1, none, none, dmin, l, xx, n, nclass)
+            nq += 1
+            if nq == L:
+                npend = _run_first(Q, nq, P, npend, n, tables, acc, margin_q, margin, q_scale, out_col, out_dist,
+                                   out_conf, yy, ZB, ZL, ZK, last_col, cnt)
+                first_blocks += 1
+                nq = 0
+    if nq > 0:
+        npend = _run_first(Q, nq, P, npend, n, tables, acc, margin_q, margin, q_scale, out_col, out_dist, out_conf,
+                           yy, ZB, ZL, ZK, last_col, cnt)
+        first_blocks += 1
     if npend > 0:
-        for p in range(npend, L):
-            for i in range(n):
-                PV[i, p] = 0
-            Pbase[p] = 0
-            Pcolref[p] = 0
-        evaluated += npend * _run_classes(PV, Plb, Pbase, Pcolref, Plo, Phi, Pk1, Pk2, Pk3, acc,
-                                          npend, 1, nclass, nclass, cls_weight, cls_start,
-                                          cls_pstart, dpos, dcol)
-        for q in range(npend):
-            _write(out_col, out_dist, out_conf, yy, Px[q], Pk1[q], Pk2[q], Pk3[q], Pdmin[q],
-                   q_scale)
-        pend_blocks += 1
-    out_stats[yy, 0] = n_second
-    out_stats[yy, 1] = evaluated
-    out_stats[yy, 2] = blocks_second
+        cnt[0] += _run_pending(P, npend, n, tables, acc, q_scale, out_col, out_dist, out_conf, yy)
+        cnt[3] += 1
+    out_stats[yy, 0] = cnt[1]
+    out_stats[yy, 1] = evaluated + cnt[0]
+    out_stats[yy, 2] = cnt[2]
     out_stats[yy, 3] = blocks
-    out_stats[yy, 4] = pend_blocks
-    out_stats[yy, 5] = n_zero
-    out_stats[yy, 6] = n_margin
+    out_stats[yy, 4] = cnt[3]
+    out_stats[yy, 5] = cnt[4]
+    out_stats[yy, 6] = n_margin + cnt[5]
     out_stats[yy, 7] = blocks_margin
+    out_stats[yy, 8] = first_blocks
+    out_stats[yy, 9] = lane_margin
 
 
 @njit(cache=True, parallel=True)
@@ -552,10 +617,14 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, model, tables, ban
     leader e of the syndrome of h, else the re-encoded information bits), base = cost(c_ref),
     V_i = +w_i where c_ref agrees with h, -w_i where not (stored V[i, lane]).  Every
     other codeword is c_ref ^ D with cost base + sum_{i in D} V_i and column col(c_ref) ^ col(D).
-    Stage 1 evaluates D = 0 and the lightest weight class for the whole block; a lane is done
-    when its third-best cost is below base + (sum of the t smallest V) for every heavier class
-    weight t.  Unfinished lanes are moved into a pending block of the row; full (or, at the end
-    of the row, partial) pending blocks evaluate the next classes until every lane is done.
+    Stage 1 evaluates D = 0 for the whole block; the lanes it does not finish (below) are
+    queued, and full (or, at the end of the row, partial) queues of LANES lanes evaluate the
+    lightest weight class (`_run_first`); a lane is done when its third-best cost is below
+    base + (sum of the t smallest V) for every heavier class weight t.  Unfinished lanes are
+    moved into a pending queue of the row; full (or, at the end of the row, partial) pending
+    queues evaluate the next classes until every lane is done (`_run_pending`).  Which lanes
+    share a queue does not change any lane's result: each lane's keys see the same codewords in
+    the same order, and a lane already proved stays proved while its queue runs on.
     Ties go to the lower column (keys (cost << IDX_BITS) | column).
 
     Columns outside a lane's candidates [lo, hi] (band, ncols < size) are dropped; the bounds
@@ -573,13 +642,17 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, model, tables, ban
     a slot that is not holds `BEYOND_KEY` (row `BEYOND` = -2, distance inf: a codeword at least
     the margin behind, not located).  A block whose every lane is beyond the margin after
     D = 0 skips the lightest class (tried first with `_lightest_floor`'s bounds, which need no
-    sort, then with `_class_bounds`': `_first_bounds`).  This is what a reader that ignores every candidate more than
+    sort, then with `_class_bounds`': `_first_bounds`); in any other block each lane beyond the
+    margin with its class bound is finished there, and only the others are queued for the
+    lightest class.  This is what a reader that ignores every candidate more than
     ``margin`` behind the best needs (the error rule's posterior, `SKIP_MARGIN`), and in a
     high-SNR capture nearly every block skips its lightest class.  Slots within the margin, and
-    the pending block's lanes, are exact top-3 as without a margin.
-    out_stats (H, 8) int64 per row: pixels that needed the second class, codeword evaluations,
-    stage-1 blocks with at least one such pixel, stage-1 blocks, pending blocks, pixels resolved
-    by `_zero_set_top3`, pixels finished by the margin, blocks that skipped the lightest class.
+    the pending queue's lanes, are exact top-3 as without a margin.
+    out_stats (H, 10) int64 per row: pixels that needed the second class, codeword evaluations,
+    lightest-class queues with at least one such pixel, stage-1 blocks, pending queues run,
+    pixels resolved by `_zero_set_top3`, pixels finished by the margin, blocks that skipped the
+    lightest class, lightest-class queues run, pixels finished by the margin after D = 0 in a
+    block that did not skip.
     """
     height = frames.shape[1]
     for yy in prange(height):
