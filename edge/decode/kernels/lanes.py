@@ -373,6 +373,13 @@ def margin_block(Y, n, tables, active, lo, hi, dmin, q_scale, margin_q, margin, 
     return True
 
 
+#: A block's lanes that D = 0 leaves for the lightest weight class are queued (copied, to run
+#: with other blocks' in full queues) only where that class holds at least this many codewords
+#: (ecc-22-10: 330); below, copying a lane costs about what evaluating the class for it does
+#: (gray-10: 10 codewords of weight 1), and the block runs the class itself.
+QUEUE_MIN_WORDS = 64
+
+
 class LaneQueue(NamedTuple):
     """A block of up to LANES lanes gathered from several blocks of a row (`_queue_lane`), each
     with what its search needs next: V (n, LANES) int32, class bounds lb (nclass + 1, LANES) int64,
@@ -443,25 +450,29 @@ def _run_pending(P, count, n, tables, acc, q_scale, out_col, out_dist, out_conf,
 
 
 @njit(cache=True)
-def _run_first(Q, count, P, npend, n, tables, acc, margin_q, margin, q_scale, out_col, out_dist, out_conf, yy,
-               ZB, ZL, ZK, last_col, cnt):
-    """The first-class queue's ``count`` lanes: the lightest weight class, then per lane: top-3
-    proved by the next class's bound (written), or every codeword not evaluated beyond the
-    margin (written, `_beyond_keys`), or a full-space code's ties at cost 0 (`_zero_set_top3`,
-    written), else moved to the pending queue P (which runs once full).  Returns P's new count;
-    adds to cnt: [0] evaluations, [1] lanes moved to P, [2] 1 if any was, [3] pending blocks
-    run, [4] zero-set lanes, [5] margin lanes."""
+def _run_first(Q, count, live, nlive, P, npend, n, tables, acc, margin_q, margin, q_scale, out_col, out_dist,
+               out_conf, yy, ZB, ZL, ZK, last_col, cnt):
+    """Lanes 0..count-1 of Q (a queue, lanes past ``count`` padded; or a block of the row, count
+    = LANES) evaluate the lightest weight class; then each lane with ``live`` set (``nlive`` of
+    them): top-3 proved by the next class's bound (written), or every codeword not evaluated
+    beyond the margin (written, `_beyond_keys`), or a full-space code's ties at cost 0
+    (`_zero_set_top3`, written), else moved to the pending queue P (which runs once full).
+    Returns P's new count; adds to cnt: [0] evaluations (``nlive`` per codeword), [1] lanes moved
+    to P, [2] 1 if any was, [3] pending queues run, [4] zero-set lanes, [5] margin lanes."""
     nclass = tables.cls_weight.shape[0]
     full_space = tables.full_space
-    _pad_queue(Q, count, n)
+    if count < LANES:
+        _pad_queue(Q, count, n)
     for p in range(count):
         Q.k2[p] = NO_KEY
         Q.k3[p] = NO_KEY
-    cnt[0] += count * _run_classes(Q.V, Q.lb, Q.base, Q.colref, Q.lo, Q.hi, Q.k1, Q.k2, Q.k3, acc, count, 0, 1,
+    cnt[0] += nlive * _run_classes(Q.V, Q.lb, Q.base, Q.colref, Q.lo, Q.hi, Q.k1, Q.k2, Q.k3, acc, count, 0, 1,
                                    nclass, tables.cls_weight, tables.cls_start, tables.cls_pstart, tables.dpos,
                                    tables.dcol)
     moved = False
     for p in range(count):
+        if not live[p]:
+            continue
         xx = Q.x[p]
         bound = Q.base[p] + Q.lb[1, p]
         if (Q.k3[p] >> IDX_BITS) < bound:
@@ -526,6 +537,13 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
     none = np.full(L, NO_KEY)
     dmin = np.zeros(L, np.float64)
     active = np.zeros(L, np.bool_)
+    live = np.zeros(L, np.bool_)  # the block's lanes that D = 0 left for the lightest class
+    queued = np.ones(L, np.bool_)  # a queue's lanes (its first count)
+    # the block itself as a queue (its lanes at x0 + l), for `_run_first` where it runs whole
+    B = LaneQueue(V, lb, base, colref, lo, hi, k1, np.full(L, NO_KEY), np.full(L, NO_KEY), dmin,
+                  np.zeros(L, np.int64))
+    # queue a block's unfinished lanes only where the lightest class costs more than copying them
+    queue_pays = tables.cls_start[1] - tables.cls_start[0] >= QUEUE_MIN_WORDS if nclass > 0 else False
     Q = _lane_queue(n, nclass)  # lanes due for the lightest class
     P = _lane_queue(n, nclass)  # lanes due for the heavier classes
     ZB = np.zeros(n, np.int64)
@@ -567,10 +585,13 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
         whole = _first_bounds(V, SV, run, lb, n, cls_weight, nclass, k1, base, active, x0, width, margin_q, margin,
                               dmin, q_scale)
         blocks_margin += 1 if whole else 0
+        nlive = 0
         for l in range(L):
             xx = x0 + l
+            live[l] = False
+            B.x[l] = xx
             if xx >= width:
-                break
+                continue
             if not active[l]:
                 _write_none(out_col, out_dist, out_conf, yy, xx)
                 continue
@@ -581,16 +602,28 @@ def _lanes_row(yy, frames, inverse, has_inv, white, black, scale, model, tables,
                 n_margin += 1
                 lane_margin += 0 if whole else 1
                 continue
-            _queue_lane(Q, nq, V, lb, base, colref, lo, hi, k1, none, none, dmin, l, xx, n, nclass)
+            live[l] = True
+            nlive += 1
+        if nlive == 0:
+            continue
+        if nlive == nact or not queue_pays:  # the block runs the lightest class itself
+            npend = _run_first(B, L, live, nlive, P, npend, n, tables, acc, margin_q, margin, q_scale, out_col,
+                               out_dist, out_conf, yy, ZB, ZL, ZK, last_col, cnt)
+            first_blocks += 1
+            continue
+        for l in range(L):
+            if not live[l]:
+                continue
+            _queue_lane(Q, nq, V, lb, base, colref, lo, hi, k1, none, none, dmin, l, x0 + l, n, nclass)
             nq += 1
             if nq == L:
-                npend = _run_first(Q, nq, P, npend, n, tables, acc, margin_q, margin, q_scale, out_col, out_dist,
-                                   out_conf, yy, ZB, ZL, ZK, last_col, cnt)
+                npend = _run_first(Q, nq, queued, nq, P, npend, n, tables, acc, margin_q, margin, q_scale, out_col,
+                                   out_dist, out_conf, yy, ZB, ZL, ZK, last_col, cnt)
                 first_blocks += 1
                 nq = 0
     if nq > 0:
-        npend = _run_first(Q, nq, P, npend, n, tables, acc, margin_q, margin, q_scale, out_col, out_dist, out_conf,
-                           yy, ZB, ZL, ZK, last_col, cnt)
+        npend = _run_first(Q, nq, queued, nq, P, npend, n, tables, acc, margin_q, margin, q_scale, out_col, out_dist,
+                           out_conf, yy, ZB, ZL, ZK, last_col, cnt)
         first_blocks += 1
     if npend > 0:
         cnt[0] += _run_pending(P, npend, n, tables, acc, q_scale, out_col, out_dist, out_conf, yy)
@@ -617,9 +650,10 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, model, tables, ban
     leader e of the syndrome of h, else the re-encoded information bits), base = cost(c_ref),
     V_i = +w_i where c_ref agrees with h, -w_i where not (stored V[i, lane]).  Every
     other codeword is c_ref ^ D with cost base + sum_{i in D} V_i and column col(c_ref) ^ col(D).
-    Stage 1 evaluates D = 0 for the whole block; the lanes it does not finish (below) are
-    queued, and full (or, at the end of the row, partial) queues of LANES lanes evaluate the
-    lightest weight class (`_run_first`); a lane is done when its third-best cost is below
+    Stage 1 evaluates D = 0 for the whole block; the lanes it does not finish (below) evaluate
+    the lightest weight class (`_run_first`): in the block itself where every active lane needs
+    it or the class is small (`QUEUE_MIN_WORDS`), else queued, in full (or, at the end of the
+    row, partial) queues of LANES lanes from the row's blocks; a lane is done when its third-best cost is below
     base + (sum of the t smallest V) for every heavier class weight t.  Unfinished lanes are
     moved into a pending queue of the row; full (or, at the end of the row, partial) pending
     queues evaluate the next classes until every lane is done (`_run_pending`).  Which lanes
