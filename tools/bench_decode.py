@@ -317,15 +317,17 @@ def cuda_hard_regime(args, gpu_timed, row, bmed) -> bool:
 
 def margin_line(r, exact, pixels: int) -> None:
     """One line on a search with the skip margin (`cpu_backend.search(..., margin=SKIP_MARGIN)`,
-    what `decode()`'s soft method runs): pixels it finished, lane blocks that skipped their
-    lightest weight class, codewords evaluated, and whether its best candidates and every
+    what `decode()`'s soft method runs): pixels it finished (and of those, the ones finished
+    alone after D = 0 in a block that did not skip), lane blocks that skipped their lightest
+    weight class, codewords evaluated, and whether its best candidates and every
     candidate it located equal the exact top-3 search's."""
     s = r[3]
     located = r[0] >= 0
     same = (np.array_equal(r[0][..., 0], exact[0][..., 0]) and np.array_equal(r[0][located], exact[0][located])
             and np.array_equal(r[1][located], exact[1][located]))
-    print(f"    finished by the margin {s['margin_pixels'] / pixels:.2%} of pixels; blocks that skipped the "
-          f"lightest class {s['margin_blocks'] / max(s['blocks'], 1):.2%}; codewords evaluated / pixel "
+    print(f"    finished by the margin {s['margin_pixels'] / pixels:.2%} of pixels ({s['margin_lanes'] / pixels:.2%} "
+          f"alone, in blocks that did not skip); blocks that skipped the lightest class "
+          f"{s['margin_blocks'] / max(s['blocks'], 1):.2%}; codewords evaluated / pixel "
           f"{s['evaluated'] / pixels:.1f}; best and located candidates equal the exact search's: {same}", flush=True)
 
 
