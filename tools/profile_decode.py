@@ -12,6 +12,10 @@ calls (split levels, the float32 copy of the frames for the search, the candidat
 noise fit, the posterior, and the host's goodness-of-fit test and method: `publish_error_rule`), timed by wrapping the decoder module's references to them for the
 duration of the run (nothing else is changed), next to the median of the whole call.
 
+Search table: the search's counters of those decodes (`Decoded.stats`): its path, codewords
+evaluated per pixel, the pixels the skip margin finished and, of them, those finished alone
+after D = 0 in a lane block that did not skip its lightest weight class.
+
 Tail table (hard regime, all codewords): the tail mass (`posterior._tail_mass`) is due on the
 pixels whose third candidate is not negligible and whose top three leave P(confused) below 1/2
 (`posterior._posterior`'s mask, read where `posterior._tail_pass` receives it); the table gives how many pixels that is, how
@@ -99,8 +103,9 @@ def median_ms(fn, repeats: int) -> float:
     return 1e3 * statistics.median(wall)
 
 
-def stage_rows(label: str, call, repeats: int) -> None:
-    call()
+def stage_rows(label: str, call, repeats: int) -> dict:
+    """One row of the stage table; returns the search's counters of the call (`Decoded.stats`)."""
+    searched = call().stats
     seconds: dict[str, list[float]] = {}
     with stage_timer(seconds):
         total = median_ms(call, repeats)
@@ -108,6 +113,22 @@ def stage_rows(label: str, call, repeats: int) -> None:
     rest = total - sum(parts.values())
     cells = " | ".join(f"{parts.get(k, 0.0):.1f}" for k in STAGES)
     print(f"| {label} | {total:.1f} | {cells} | {rest:.1f} |")
+    return searched
+
+
+def search_rows(rows: list[tuple[str, dict, int]]) -> None:
+    """The search's counters of the stage table's decodes: path, codewords (band: candidate
+    columns) evaluated per pixel, pixels finished by the skip margin and, of them, those finished
+    alone after D = 0 in a lane block that did not skip (the lane path)."""
+    print("\nThe search of those decodes:\n")
+    print("| input | path | evaluated / pixel | finished by the margin | of them alone |")
+    print("|---|---|---|---|---|")
+    for label, st, pixels in rows:
+        finished = st.get("margin_pixels")
+        alone = st.get("margin_lanes")
+        print(f"| {label} | {st.get('path')} | {st.get('evaluated', 0) / pixels:.1f} | "
+              f"{'-' if finished is None else f'{finished / pixels:.1%}'} | "
+              f"{'-' if alone is None else f'{alone / pixels:.1%}'} |")
 
 
 def real_rows(folder: Path, repeats: int) -> None:
@@ -273,14 +294,17 @@ def main(argv=None) -> int:
     print(f"decode() defaults, ecc-22-10, {h} x {w}; stage medians in ms (rest: validation, masks, glue)\n")
     print("| input | whole | " + " | ".join(STAGES) + " | rest |")
     print("|---" * (len(STAGES) + 3) + "|")
-    stage_rows("easy", lambda: decode(easy.frames, easy.white, easy.black, code), args.repeats)
-    stage_rows("easy, band [0, 128]", lambda: decode(easy.frames, easy.white, easy.black, code,
-                                                   min_disparity=0, max_disparity=128), args.repeats)
-    stage_rows("hard", lambda: decode(hard.frames, hard.white, hard.black, hcode, bit_depth=hard.bit_depth),
-               args.repeats)
-    stage_rows(f"hard, band [{band[0]}, {band[1]}]", lambda: decode(
-        hard.frames, hard.white, hard.black, hcode, bit_depth=hard.bit_depth, min_disparity=band[0],
-        max_disparity=band[1]), args.repeats)
+    rows = []
+    for label, call in (
+            ("easy", lambda: decode(easy.frames, easy.white, easy.black, code)),
+            ("easy, band [0, 128]", lambda: decode(easy.frames, easy.white, easy.black, code,
+                                                   min_disparity=0, max_disparity=128)),
+            ("hard", lambda: decode(hard.frames, hard.white, hard.black, hcode, bit_depth=hard.bit_depth)),
+            (f"hard, band [{band[0]}, {band[1]}]", lambda: decode(
+                hard.frames, hard.white, hard.black, hcode, bit_depth=hard.bit_depth, min_disparity=band[0],
+                max_disparity=band[1]))):
+        rows.append((label, stage_rows(label, call, args.repeats), h * w))
+    search_rows(rows)
     print("\nThe tail mass, hard regime, all codewords:\n")
     tail_rows(hcode, hard, args.repeats)
     if args.real.is_dir():
