@@ -12,7 +12,13 @@ service warms up, before its sensor starts:
 
 With a warm numba cache this is a second or two; with an empty cache (first start on a device)
 it is minutes on a slow 2-core host, which is why the service only reports ``READY=1`` to systemd
-after it.  A variant whose warm-up fails is not offered: `Service.update_config` refuses a switch
+after it.  So that a second core is not idle meanwhile, a profile pipeline still compiling after
+`HELPER_AFTER_S` starts a *helper process* (`VariantHelper`) that compiles the variants
+(`helper_order`) into numba's on-disk cache (processes share it safely under `edge.numba_cache`'s lock);
+this process then warms each variant as before, loading what the helper has saved and compiling
+the rest itself, so what is warmed, and what a failure refuses, does not depend on the helper.
+The helper is stopped when the warm-up ends (or stops), and exits by itself when its parent is
+gone (its stdin closes).  A variant whose warm-up fails is not offered: `Service.update_config` refuses a switch
 to it with the reason, and a method that does not fit the pipeline (see `WarmUpReport.refusal`).
 An update accepted before or during warm-up is applied at the first stack, i.e. after every
 variant compiled.
@@ -20,11 +26,20 @@ variant compiled.
 
 from __future__ import annotations
 
+import os
+import pickle
+import subprocess
+import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
+
+#: Seconds the profile's own pipeline may take to warm up before a `VariantHelper` starts (a warm
+#: numba cache loads a pipeline in a second or two: no helper then).
+HELPER_AFTER_S = 5.0
 
 def switchable_variants(profile) -> list[tuple[str, Any]]:
     """[(label, profile)] the live config may switch ``profile`` to, other than itself.
@@ -63,11 +78,13 @@ def variant_label(old, new) -> list[str]:
 
 @dataclass
 class WarmUpReport:
-    """Seconds per warmed item (``"profile"`` = the running pipeline) and failures (label -> reason)."""
+    """Seconds per warmed item (``"profile"`` = the running pipeline), failures (label -> reason),
+    and whether a `VariantHelper` compiled the variants alongside (``helper``)."""
 
     seconds: dict[str, float] = field(default_factory=dict)
     failed: dict[str, str] = field(default_factory=dict)
     done: bool = False
+    helper: bool = False
 
     @property
     def total_s(self) -> float:
@@ -135,18 +152,137 @@ def warm_pipeline(pipeline, *, edc: bool = False) -> float:
 
 
 def warm_up_all(profile, factory: Callable[[Any], Any], pipeline: Any, *, variants: bool = True,
-                report: WarmUpReport | None = None, should_stop: Callable[[], bool] = lambda: False) -> WarmUpReport:
+                report: WarmUpReport | None = None, should_stop: Callable[[], bool] = lambda: False,
+                helper_after_s: float | None = HELPER_AFTER_S) -> WarmUpReport:
     """Warm ``pipeline`` (built from ``profile``) and, with ``variants``, every switchable variant
-    (built with ``factory``).  Stops early when ``should_stop()`` turns true.  Fills ``report``."""
+    (built with ``factory``).  Stops early when ``should_stop()`` turns true.  Fills ``report``.
+    helper_after_s: where the profile's pipeline is still warming up after this many seconds, a
+    `VariantHelper` compiles the variants alongside (only with the standard pipeline factory,
+    see `VariantHelper.useful`; None: never)."""
+    from .pipelines import make_pipeline
+
     report = report if report is not None else WarmUpReport()
-    report.seconds["profile"] = warm_pipeline(pipeline, edc=profile.edc.rounds > 0)
-    if variants:
-        for label, variant in switchable_variants(profile):
+    labelled = switchable_variants(profile) if variants else []
+    helper = None
+    timer = None
+    if labelled and helper_after_s is not None and factory is make_pipeline and VariantHelper.useful():
+        helper = VariantHelper(profile)
+        timer = threading.Timer(helper_after_s, helper.start)
+        timer.daemon = True
+        timer.start()
+    try:
+        report.seconds["profile"] = warm_pipeline(pipeline, edc=profile.edc.rounds > 0)
+        if timer is not None:
+            timer.cancel()
+        for label, variant in labelled:
             if should_stop():
                 return report
             try:
                 report.seconds[label] = warm_pipeline(factory(variant), edc=variant.edc.rounds > 0)
             except Exception as exc:  # a variant that cannot run is refused later, with this reason
                 report.failed[label] = f"{type(exc).__name__}: {exc}"
-    report.done = True
-    return report
+        report.done = True
+        return report
+    finally:
+        if timer is not None:
+            timer.cancel()
+        if helper is not None:
+            report.helper = helper.stop()
+
+
+class VariantHelper:
+    """A child process (a fresh interpreter, `helper_main`) that warms every switchable variant of
+    a profile (`helper_order`), so that their kernels land in numba's on-disk cache while this process
+    compiles the profile's own pipeline.  The profile goes to it pickled on its stdin, which then
+    stays open: the child exits when it closes (this process gone).  Its output is discarded.
+
+    `start` and `stop` may race (a timer starts it): once stopped it does not start."""
+
+    def __init__(self, profile) -> None:
+        self.profile = profile
+        self._lock = threading.Lock()
+        self._proc: subprocess.Popen | None = None
+        self._stopped = False
+
+    @staticmethod
+    def useful() -> bool:
+        """A second CPU to compile on, numba compiling at all, and its cache lock in place (no
+        ``fcntl``: two processes saving into one cache are not safe, `edge.numba_cache`)."""
+        from .. import numba_cache
+
+        try:
+            cpus = len(os.sched_getaffinity(0))
+        except AttributeError:  # not on Linux
+            cpus = os.cpu_count() or 1
+        return cpus >= 2 and numba_cache.fcntl is not None and os.environ.get("NUMBA_DISABLE_JIT", "0") in ("", "0")
+
+    def start(self) -> None:
+        with self._lock:
+            if self._stopped or self._proc is not None:
+                return
+            # the folder above the edge package first on the child's path: it imports this edge
+            # whether installed or run from a checkout
+            root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+            env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p))
+            try:
+                self._proc = subprocess.Popen(
+                    [sys.executable, "-c", "from edge.runtime.warmup import helper_main; helper_main()"],
+                    stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+                self._proc.stdin.write(pickle.dumps(self.profile))
+                self._proc.stdin.flush()
+            except OSError:  # no helper: this process compiles everything, as without one
+                self._kill()
+
+    def stop(self) -> bool:
+        """Stop the child (if it started); returns whether it had started."""
+        with self._lock:
+            self._stopped = True
+            started = self._proc is not None
+            self._kill()
+            return started
+
+    def _kill(self) -> None:
+        proc, self._proc = self._proc, None
+        if proc is None:
+            return
+        if proc.poll() is None:
+            proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        if proc.stdin is not None:
+            try:
+                proc.stdin.close()
+            except OSError:
+                pass
+
+
+def helper_order(labelled: list[tuple[str, Any]]) -> list[tuple[str, Any]]:
+    """The order the helper warms the variants in: ``decoder.method=hard`` first (its kernels share
+    nothing with a soft decoder's, so it compiles while the parent compiles the profile's), then
+    the rest last first (the parent warms them first first: the two meet in the middle)."""
+    hard = [x for x in labelled if x[0] == "decoder.method=hard"]
+    return hard + [x for x in reversed(labelled) if x[0] != "decoder.method=hard"]
+
+
+def helper_main() -> None:
+    """`VariantHelper`'s child: read the pickled profile from stdin, exit once stdin closes (the
+    parent gone), warm each switchable variant in `helper_order`; a variant that fails is
+    skipped (the parent reports it)."""
+    from .pipelines import make_pipeline
+
+    stream = sys.stdin.buffer
+    profile = pickle.load(stream)
+
+    def watch() -> None:
+        stream.read()  # returns at EOF: the parent closed the pipe or is gone
+        os._exit(0)
+
+    threading.Thread(target=watch, name="edge-warmup-helper-watch", daemon=True).start()
+    for _label, variant in helper_order(switchable_variants(profile)):
+        try:
+            warm_pipeline(make_pipeline(variant), edc=variant.edc.rounds > 0)
+        except Exception:
+            continue
