@@ -101,7 +101,9 @@ class Decoded:
         ``second_class_pixels`` / ``second_class_blocks`` / ``blocks`` / ``pending_blocks`` /
         ``zero_set_pixels`` (a full-space code's ties at cost 0 resolved directly) and, searched
         with a margin (the "error" rule's soft method), ``margin_pixels`` / ``margin_blocks``
-        (pixels finished by it, blocks that skipped their lightest class); the
+        (pixels finished by it, blocks that skipped their lightest class) and ``margin_lanes`` (of
+        those pixels, the ones finished alone in a block that did not), with
+        ``first_class_blocks`` (lightest-class runs, a block or a queue of lanes); the
         "band" path adds ``wide_key_pixels`` (pixels whose costs exceeded the 32-bit keys and were
         redone with 64-bit keys, see `kernels.soft_band_fold`) and ``margin_blocks``.  Under the "error" rule it adds
         ``rule``, ``levels``, ``level_source`` ("split", "calibration" or "refit",

@@ -401,6 +401,7 @@ class LaneQueue(NamedTuple):
 
 @njit(cache=True)
 def _lane_queue(n, nclass):
+    """An empty `LaneQueue` for codes of n positions and nclass weight classes."""
     L = LANES
     return LaneQueue(np.zeros((n, L), np.int32), np.zeros((nclass + 1, L), np.int64), np.zeros(L, np.int32),
                      np.zeros(L, np.int32), np.zeros(L, np.int32), np.zeros(L, np.int32), np.full(L, NO_KEY),
@@ -683,10 +684,10 @@ def soft_lanes(frames, inverse, has_inv, white, black, scale, model, tables, ban
     high-SNR capture nearly every block skips its lightest class.  Slots within the margin, and
     the pending queue's lanes, are exact top-3 as without a margin.
     out_stats (H, 10) int64 per row: pixels that needed the second class, codeword evaluations,
-    lightest-class queues with at least one such pixel, stage-1 blocks, pending queues run,
-    pixels resolved by `_zero_set_top3`, pixels finished by the margin, blocks that skipped the
-    lightest class, lightest-class queues run, pixels finished by the margin after D = 0 in a
-    block that did not skip.
+    lightest-class runs (a queue or a block, `_run_first`) with at least one such pixel, stage-1
+    blocks, pending queues run, pixels resolved by `_zero_set_top3`, pixels finished by the
+    margin, blocks that skipped the lightest class, lightest-class runs, pixels finished by the
+    margin after D = 0 in a block that did not skip.
     """
     height = frames.shape[1]
     for yy in prange(height):
