@@ -14,11 +14,13 @@ With a warm numba cache this is a second or two; with an empty cache (first star
 it is minutes on a slow 2-core host, which is why the service only reports ``READY=1`` to systemd
 after it.  So that a second core is not idle meanwhile, a profile pipeline still compiling after
 `HELPER_AFTER_S` starts a *helper process* (`VariantHelper`) that compiles the variants
-(`helper_order`) into numba's on-disk cache (processes share it safely under `edge.numba_cache`'s lock);
-this process then warms each variant as before, loading what the helper has saved and compiling
-the rest itself, so what is warmed, and what a failure refuses, does not depend on the helper.
-The helper is stopped when the warm-up ends (or stops), and exits by itself when its parent is
-gone (its stdin closes).  A variant whose warm-up fails is not offered: `Service.update_config` refuses a switch
+(`helper_order`) into numba's on-disk cache (processes share it safely under the lock of
+`edge.numba_cache`); this process then warms each variant as before, loading what the helper
+has saved and compiling the rest itself, so what is warmed, and what a failure refuses, does not
+depend on the helper.  The helper is stopped when the warm-up ends (or stops), and exits by
+itself when its parent is gone (its stdin closes).
+
+A variant whose warm-up fails is not offered: `Service.update_config` refuses a switch
 to it with the reason, and a method that does not fit the pipeline (see `WarmUpReport.refusal`).
 An update accepted before or during warm-up is applied at the first stack, i.e. after every
 variant compiled.
@@ -40,6 +42,7 @@ import numpy as np
 #: Seconds the profile's own pipeline may take to warm up before a `VariantHelper` starts (a warm
 #: numba cache loads a pipeline in a second or two: no helper then).
 HELPER_AFTER_S = 5.0
+
 
 def switchable_variants(profile) -> list[tuple[str, Any]]:
     """[(label, profile)] the live config may switch ``profile`` to, other than itself.
