@@ -13,8 +13,8 @@ noise fit, the posterior, and the host's goodness-of-fit test and method: `publi
 duration of the run (nothing else is changed), next to the median of the whole call.
 
 Search table: the search's counters of those decodes (`Decoded.stats`): its path, codewords
-evaluated per pixel, the pixels the skip margin finished and, of them, those finished alone
-after D = 0 in a lane block that did not skip its lightest weight class.
+evaluated per pixel, the share of pixels the skip margin finished and the share it finished
+alone after D = 0 in a lane block that did not skip its lightest weight class (both of all pixels).
 
 Tail table (hard regime, all codewords): the tail mass (`posterior._tail_mass`) is due on the
 pixels whose third candidate is not negligible and whose top three leave P(confused) below 1/2
@@ -118,10 +118,11 @@ def stage_rows(label: str, call, repeats: int) -> dict:
 
 def search_rows(rows: list[tuple[str, dict, int]]) -> None:
     """The search's counters of the stage table's decodes: path, codewords (band: candidate
-    columns) evaluated per pixel, pixels finished by the skip margin and, of them, those finished
-    alone after D = 0 in a lane block that did not skip (the lane path)."""
+    columns) evaluated per pixel, the share of pixels finished by the skip margin and the share
+    finished by it alone after D = 0 in a lane block that did not skip (the lane path; both
+    shares of all pixels)."""
     print("\nThe search of those decodes:\n")
-    print("| input | path | evaluated / pixel | finished by the margin | of them alone |")
+    print("| input | path | evaluated / pixel | finished by the margin | finished alone |")
     print("|---|---|---|---|---|")
     for label, st, pixels in rows:
         finished = st.get("margin_pixels")
